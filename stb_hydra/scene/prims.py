@@ -1,0 +1,203 @@
+"""Plain typed records the scene index hands to render prims.
+
+Coordinate frame of every record: the *render frame* -- right-handed, +Y up,
+metres. ``StageSceneIndex`` folds the stage's ``upAxis`` and ``metersPerUnit``
+into ``render_from_stage`` (a 4x4) so world transforms below are already in it.
+Matrices are row-vector (USD) convention: ``p_world = p_local @ M``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Hydra prim type tokens.
+MESH = "mesh"
+CAMERA = "camera"
+MATERIAL = "material"
+SPHERE_LIGHT = "sphereLight"
+DISK_LIGHT = "diskLight"
+RECT_LIGHT = "rectLight"
+CYLINDER_LIGHT = "cylinderLight"
+DISTANT_LIGHT = "distantLight"
+DOME_LIGHT = "domeLight"
+MESH_LIGHT = "meshLight"
+PORTAL_LIGHT = "portalLight"
+
+LIGHT_TYPES = (
+    SPHERE_LIGHT,
+    DISK_LIGHT,
+    RECT_LIGHT,
+    CYLINDER_LIGHT,
+    DISTANT_LIGHT,
+    DOME_LIGHT,
+    MESH_LIGHT,
+    PORTAL_LIGHT,
+)
+#: Lights that live at a point in space (culled, sampled by STB, shadow-mapped).
+LOCAL_LIGHT_TYPES = (SPHERE_LIGHT, DISK_LIGHT, RECT_LIGHT, CYLINDER_LIGHT, MESH_LIGHT)
+
+#: Far-field emission models of local lights (see STB_SPEC "Light units").
+EMIT_ISOTROPIC = 0  # sphere, mesh: I(w) = I0
+EMIT_COSINE = 1  # disk, rect: one-sided, I(w) = I0 * max(0, cos theta)
+EMIT_CYLINDER = 2  # cylinder side: I(w) = I0 * sin(angle to the X axis)
+
+SHADOW_STATIC = "static"
+SHADOW_DYNAMIC = "dynamic"
+
+
+def identity4() -> np.ndarray:
+    return np.eye(4, dtype=np.float64)
+
+
+@dataclass
+class LightPrim:
+    """One UsdLux light in physical units (render frame, metres).
+
+    ``intensity`` meaning depends on ``type``:
+      * local lights: luminous intensity in cd (RGB, linear Rec.709) along the
+        light's axis (peak of the far-field distribution), every UsdLux scalar
+        (intensity, exposure, colour, temperature, normalize, shape area) applied;
+      * distantLight: illuminance in lux (RGB) on a surface facing the light;
+      * domeLight: radiance in nits (RGB), uniform (texture average applied).
+    """
+
+    path: str
+    type: str
+    enabled: bool = True
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: Emission axis (light-local -Z) in the render frame, unit length.
+    direction: np.ndarray = field(default_factory=lambda: np.array([0.0, -1.0, 0.0]))
+    #: Light-local +X in the render frame, unit (IES phi = 0, cylinder axis).
+    tangent: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    intensity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    emission: int = EMIT_ISOTROPIC
+    #: Luminous flux estimate (lm) of the luminance channel; sun/dome: 0.
+    flux: float = 0.0
+    # Shape (metres, world-space scale applied).
+    radius: float = 0.0
+    width: float = 0.0
+    height: float = 0.0
+    length: float = 0.0
+    # ShapingAPI.
+    has_cone: bool = False
+    cone_angle: float = 180.0  # degrees, half angle
+    cone_softness: float = 0.0
+    focus: float = 0.0
+    focus_tint: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    ies_file: str | None = None  # resolved path, None when absent/unresolved
+    ies_asset: str | None = None  # authored asset path
+    ies_angle_scale: float = 0.0
+    ies_normalize: bool = False
+    #: Multiplier applied to the normalised baked IES table (cd per table unit),
+    #: i.e. candela = intensity * ies_scale * table(theta, phi); 1 without IES.
+    ies_scale: float = 1.0
+    ies_power: float = 0.0  # profile power (mean cd over its solid angle)
+    # LightAPI multipliers.
+    diffuse: float = 1.0
+    specular: float = 1.0
+    # ShadowAPI.
+    shadow_enable: bool = True
+    shadow_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    shadow_distance: float = -1.0  # metres, <0 = unlimited
+    shadow_falloff: float = -1.0  # metres, <=0 = none
+    shadow_falloff_gamma: float = 1.0
+    # stb:* (StbLightAPI).
+    shadow_update: str = SHADOW_STATIC
+    range: float = 0.0  # influence radius, metres
+    range_authored: bool = False
+    # DistantLight.
+    angle: float = 0.0  # angular diameter, degrees
+    # DomeLight.
+    texture_file: str | None = None
+    #: Light-linking: False when either collection is not the default "everything".
+    default_linking: bool = True
+    #: One-line human-readable problems found while reading this light.
+    warnings: list[str] = field(default_factory=list)
+    #: Instance id for lights expanded from a PointInstancer, else -1.
+    instance_id: int = -1
+    #: World scale factor (mean axis scale of the light's transform, render frame).
+    world_scale: float = 1.0
+    #: Full world transform of the light (render frame, row-vector convention).
+    transform: np.ndarray = field(default_factory=identity4)
+
+
+@dataclass
+class MeshPrim:
+    """Triangulated geometry. Points/normals in object space (stage units);
+    ``transform`` maps object space to the render frame (metres, Y-up)."""
+
+    path: str
+    points: np.ndarray  # (n, 3) float32
+    normals: np.ndarray  # (n, 3) float32, unit, per vertex (vertices split as needed)
+    indices: np.ndarray  # (m, 3) uint32
+    transform: np.ndarray = field(default_factory=identity4)
+    #: (k, 4, 4) per-instance transforms (render frame) -- PointInstancer / shared
+    #: prototypes. ``None`` = one instance with ``transform``.
+    instance_transforms: np.ndarray | None = None
+    display_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
+    #: (n, 3) per-vertex colour when displayColor varies over the mesh, else None.
+    vertex_colors: np.ndarray | None = None
+    material: str | None = None  # bound material path
+    visible: bool = True
+    #: Dynamic geometry is drawn into dynamic shadow maps only.
+    dynamic: bool = False
+    double_sided: bool = False
+    #: Key shared by meshes with identical topology/points (instance prototypes).
+    geometry_key: str = ""
+
+    @property
+    def num_instances(self) -> int:
+        return 1 if self.instance_transforms is None else len(self.instance_transforms)
+
+    def world_transforms(self) -> np.ndarray:
+        """(k, 4, 4) object -> render-frame matrices."""
+        if self.instance_transforms is None:
+            return self.transform[None]
+        return self.instance_transforms
+
+
+@dataclass
+class MaterialPrim:
+    """UsdPreviewSurface constant inputs (textures are not sampled)."""
+
+    path: str
+    diffuse_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
+    roughness: float = 0.5
+    metallic: float = 0.0
+    emissive_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    opacity: float = 1.0
+    use_specular_workflow: bool = False
+    specular_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    ior: float = 1.5
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass
+class CameraPrim:
+    """UsdGeom.Camera. Camera looks down its local -Z with +Y up."""
+
+    path: str
+    transform: np.ndarray = field(default_factory=identity4)  # camera -> render frame
+    projection: str = "perspective"
+    #: Focal length and apertures in the same unit (USD: tenths of a scene unit,
+    #: conventionally mm); only their ratios matter for the projection.
+    focal_length: float = 50.0
+    horizontal_aperture: float = 20.955
+    vertical_aperture: float = 15.2908
+    horizontal_aperture_offset: float = 0.0
+    vertical_aperture_offset: float = 0.0
+    near: float = 0.1  # metres
+    far: float = 1000.0  # metres
+    #: Extra clipping planes (a, b, c, d) in camera space, metres.
+    clipping_planes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+
+    @property
+    def aspect(self) -> float:
+        return float(self.horizontal_aperture / max(self.vertical_aperture, 1e-9))
+
+    @property
+    def vertical_fov(self) -> float:
+        """Full vertical field of view in radians (perspective)."""
+        return float(2.0 * np.arctan(0.5 * self.vertical_aperture / max(self.focal_length, 1e-9)))

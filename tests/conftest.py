@@ -1,0 +1,27 @@
+"""Shared pytest fixtures: real data from ../shared/testdata, a real GL context."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+import stb_hydra  # noqa: F401  (registers the codeless USD schema before any stage opens)
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
+TESTDATA = SHARED / "testdata"
+
+
+@pytest.fixture(scope="session")
+def testdata() -> Path:
+    """``../shared/testdata``. Missing data is an error, never a silent skip."""
+    if not TESTDATA.is_dir():
+        pytest.fail(f"shared test data not found at {TESTDATA} (set STB_SHARED)")
+    return TESTDATA
+
+
+@pytest.fixture(scope="session")
+def repo() -> Path:
+    return REPO
