@@ -65,7 +65,10 @@ class LightPrim:
 
     path: str
     type: str
+    #: Renders: ``valid`` and visible.
     enabled: bool = True
+    #: The light's data is usable (False after a bad-input warning).
+    valid: bool = True
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     #: Emission axis (light-local -Z) in the render frame, unit length.
     direction: np.ndarray = field(default_factory=lambda: np.array([0.0, -1.0, 0.0]))

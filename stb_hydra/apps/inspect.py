@@ -1,0 +1,162 @@
+"""``stb inspect SCENE [--time T] [--json]``: prims by type and every light in
+physical units (render frame: Y up, metres; cd; lm), plus all warnings."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from .common import EXIT_OK, CliError, fail, open_stage
+
+
+def _vec(v) -> list[float]:
+    return [round(float(x), 6) for x in v]
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return round(x, 6) if math.isfinite(x) else None
+
+
+def inspect_stage(stage, time: float | None = None) -> dict:
+    """The ``stb inspect`` report as a JSON-ready dict (schema in the README)."""
+    from ..render.delegate import RenderDelegate
+    from ..render.render_index import RenderIndex
+    from ..scene import prims
+    from ..scene.stage_scene_index import StageSceneIndex
+
+    si = StageSceneIndex(stage, time)
+    ri = RenderIndex(si, RenderDelegate())
+    ri.sync_all()
+    lights = []
+    for path in sorted(ri.delegate.lights):
+        lp = ri.delegate.lights[path].light
+        local = lp.type in prims.LOCAL_LIGHT_TYPES
+        rec = {
+            "path": path,
+            "type": lp.type,
+            "enabled": bool(lp.enabled),
+            "position": _vec(lp.position),
+            "direction": _vec(lp.direction),
+            "intensity": _vec(lp.intensity),
+            "intensity_unit": "cd" if local else ("lx" if lp.type == "distantLight" else "nit"),
+            "flux": _num(lp.flux),
+            "cone": (
+                {"angle": lp.cone_angle, "softness": lp.cone_softness, "focus": lp.focus}
+                if lp.has_cone
+                else None
+            ),
+            "ies": (
+                {
+                    "file": lp.ies_file or lp.ies_asset,
+                    "resolved": lp.ies_file is not None,
+                    "power": _num(lp.ies_power),
+                    "angleScale": lp.ies_angle_scale,
+                    "normalize": lp.ies_normalize,
+                }
+                if lp.ies_asset
+                else None
+            ),
+            "shadow": {
+                "enable": bool(lp.shadow_enable),
+                "update": lp.shadow_update,
+                "color": _vec(lp.shadow_color),
+            },
+            "range": _num(lp.range) if local else None,
+            "shape": {
+                k: round(v, 6)
+                for k, v in (
+                    ("radius", lp.radius),
+                    ("width", lp.width),
+                    ("height", lp.height),
+                    ("length", lp.length),
+                )
+                if v
+            },
+        }
+        lights.append(rec)
+    counts = si.counts_by_type()
+    total_flux = float(np.sum([lr["flux"] or 0.0 for lr in lights]))
+    return {
+        "stage": stage.GetRootLayer().identifier,
+        "time": None if si.time.IsDefault() else float(si.time.GetValue()),
+        "metersPerUnit": si.mpu,
+        "prims": counts,
+        "lights": lights,
+        "cameras": si.cameras(),
+        "summary": {
+            "lights": len(lights),
+            "enabled": sum(1 for lr in lights if lr["enabled"]),
+            "total_flux_lm": round(total_flux, 3),
+        },
+        "warnings": list(dict.fromkeys(si.warnings + ri.delegate.warnings)),
+    }
+
+
+def _print_report(rep: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    con = Console(width=None if sys.stdout.isatty() else 220)
+    con.print(
+        f"[bold]{rep['stage']}[/bold]  time={rep['time']}  metersPerUnit={rep['metersPerUnit']}"
+    )
+    con.print("prims: " + ", ".join(f"{k}={v}" for k, v in sorted(rep["prims"].items())))
+    t = Table(show_lines=False)
+    for col in (
+        "path",
+        "type",
+        "on",
+        "position (m)",
+        "intensity",
+        "flux (lm)",
+        "cone",
+        "IES",
+        "shadow",
+        "range (m)",
+    ):
+        t.add_column(col)
+    for lr in rep["lights"]:
+        cone = lr["cone"]
+        ies = lr["ies"]
+        t.add_row(
+            lr["path"],
+            lr["type"],
+            "yes" if lr["enabled"] else "no",
+            ", ".join(f"{x:.2f}" for x in lr["position"]),
+            ", ".join(f"{x:.3g}" for x in lr["intensity"]) + " " + lr["intensity_unit"],
+            "-" if lr["flux"] is None else f"{lr['flux']:.4g}",
+            "-" if cone is None else f"{cone['angle']:g}/{cone['softness']:g}",
+            "-" if ies is None else (ies["file"] or "") + ("" if ies["resolved"] else " (missing)"),
+            ("on" if lr["shadow"]["enable"] else "off") + f" {lr['shadow']['update']}",
+            "-" if lr["range"] is None else f"{lr['range']:.3g}",
+        )
+    con.print(t)
+    for w in rep["warnings"]:
+        con.print(f"[yellow]warning:[/yellow] {w}", markup=True, highlight=False)
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("inspect", help="list prims and lights in physical units")
+    p.add_argument("scene", help="USD file")
+    p.add_argument("--time", type=float, default=None, help="time code (default: stage start)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON")
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        stage = open_stage(args.scene)
+    except CliError as exc:
+        return fail(str(exc))
+    rep = inspect_stage(stage, args.time)
+    if args.json:
+        json.dump(rep, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        _print_report(rep)
+    return EXIT_OK

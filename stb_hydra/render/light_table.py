@@ -1,0 +1,178 @@
+"""Structure-of-arrays store of every light, one row per light render prim.
+
+Light sprims write their row on sync; culling, shadow scheduling and the GPU
+packing read whole columns with numpy (no per-light Python loop in the frame
+path). Rows are recycled through a free list; ``version`` increases on every
+write so consumers can upload only what changed.
+
+Units: metres, candela (local lights), lux (distant), nits (dome), radians.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..scene import prims
+from ..scene.prims import LightPrim
+
+TYPE_CODES = {t: i for i, t in enumerate(prims.LIGHT_TYPES)}
+LOCAL_TYPE_CODES = np.array([TYPE_CODES[t] for t in prims.LOCAL_LIGHT_TYPES], dtype=np.int8)
+
+_COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
+    "position": ((3,), np.float64, 0.0),
+    "direction": ((3,), np.float32, 0.0),
+    "tangent": ((3,), np.float32, 0.0),
+    "intensity": ((3,), np.float32, 0.0),
+    "range": ((), np.float32, 0.0),
+    "flux": ((), np.float32, 0.0),
+    "type": ((), np.int8, -1),
+    "emission": ((), np.int8, 0),
+    "enabled": ((), np.bool_, False),
+    "live": ((), np.bool_, False),
+    "cone_cutoff": ((), np.float32, math.pi),  # radians
+    "cone_start": ((), np.float32, math.pi),  # radians, smoothstep start
+    "focus": ((), np.float32, 0.0),
+    "focus_tint": ((3,), np.float32, 0.0),
+    "ies_layer": ((), np.int32, -1),
+    "ies_scale": ((), np.float32, 1.0),
+    "ies_angle_scale": ((), np.float32, 0.0),
+    "diffuse": ((), np.float32, 1.0),
+    "specular": ((), np.float32, 1.0),
+    "shadow_enable": ((), np.bool_, False),
+    "shadow_dynamic": ((), np.bool_, False),
+    "shadow_color": ((3,), np.float32, 0.0),
+    "shadow_distance": ((), np.float32, -1.0),
+    "shadow_falloff": ((), np.float32, -1.0),
+    "shadow_falloff_gamma": ((), np.float32, 1.0),
+    "radius": ((), np.float32, 0.0),
+    "angle": ((), np.float32, 0.0),  # distant light angular diameter, degrees
+    "version": ((), np.int64, 0),
+}
+
+
+class LightTable:
+    def __init__(self, capacity: int = 64) -> None:
+        self.capacity = 0
+        self.cols: dict[str, np.ndarray] = {}
+        self._free: list[int] = []
+        self._n_rows = 0  # high-water mark
+        self.rows: dict[str, int] = {}
+        self.paths: list[str | None] = []
+        self.version = 0  # bumped on any write/free
+        self._grow(max(capacity, 1))
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    @property
+    def n_rows(self) -> int:
+        """Rows in use or freed (columns are valid up to this index)."""
+        return self._n_rows
+
+    def _grow(self, cap: int) -> None:
+        for name, (shape, dtype, fill) in _COLUMNS.items():
+            new = np.full((cap, *shape), fill, dtype=dtype)
+            old = self.cols.get(name)
+            if old is not None:
+                new[: len(old)] = old
+            self.cols[name] = new
+        self.paths.extend([None] * (cap - self.capacity))
+        self.capacity = cap
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        cols = self.__dict__.get("cols")
+        if cols is not None and name in cols:
+            return cols[name][: self._n_rows]
+        raise AttributeError(name)
+
+    def alloc(self, path: str) -> int:
+        if path in self.rows:
+            return self.rows[path]
+        if self._free:
+            row = self._free.pop()
+        else:
+            if self._n_rows >= self.capacity:
+                self._grow(self.capacity * 2)
+            row = self._n_rows
+            self._n_rows += 1
+        self.rows[path] = row
+        self.paths[row] = path
+        self.cols["live"][row] = True
+        return row
+
+    def free(self, path: str) -> None:
+        row = self.rows.pop(path, None)
+        if row is None:
+            return
+        for name, (_shape, _dtype, fill) in _COLUMNS.items():
+            if name != "version":
+                self.cols[name][row] = fill
+        self.paths[row] = None
+        self._free.append(row)
+        self.version += 1
+        self.cols["version"][row] = self.version
+
+    def write(self, row: int, lp: LightPrim, ies_layer: int = -1) -> None:
+        """Copy a light record into its row."""
+        c = self.cols
+        c["position"][row] = lp.position
+        c["direction"][row] = lp.direction
+        c["tangent"][row] = lp.tangent
+        c["intensity"][row] = lp.intensity
+        c["range"][row] = lp.range if math.isfinite(lp.range) else np.float32(3.0e38)
+        c["flux"][row] = lp.flux
+        c["type"][row] = TYPE_CODES[lp.type]
+        c["emission"][row] = lp.emission
+        c["enabled"][row] = lp.enabled
+        if lp.has_cone:
+            cut = math.radians(lp.cone_angle)
+            c["cone_cutoff"][row] = cut
+            c["cone_start"][row] = cut * (1.0 - lp.cone_softness)
+        else:
+            c["cone_cutoff"][row] = c["cone_start"][row] = math.pi
+        c["focus"][row] = lp.focus
+        c["focus_tint"][row] = lp.focus_tint
+        c["ies_layer"][row] = ies_layer
+        c["ies_scale"][row] = lp.ies_scale if ies_layer >= 0 else 1.0
+        c["ies_angle_scale"][row] = lp.ies_angle_scale
+        c["diffuse"][row] = lp.diffuse
+        c["specular"][row] = lp.specular
+        c["shadow_enable"][row] = lp.shadow_enable
+        c["shadow_dynamic"][row] = lp.shadow_update == prims.SHADOW_DYNAMIC
+        c["shadow_color"][row] = lp.shadow_color
+        c["shadow_distance"][row] = lp.shadow_distance
+        c["shadow_falloff"][row] = lp.shadow_falloff
+        c["shadow_falloff_gamma"][row] = lp.shadow_falloff_gamma
+        c["radius"][row] = lp.radius
+        c["angle"][row] = lp.angle
+        self.version += 1
+        c["version"][row] = self.version
+
+    def write_transform(self, row: int, lp: LightPrim) -> None:
+        c = self.cols
+        c["position"][row] = lp.position
+        c["direction"][row] = lp.direction
+        c["tangent"][row] = lp.tangent
+        self.version += 1
+        c["version"][row] = self.version
+
+    def set_enabled(self, row: int, enabled: bool) -> None:
+        self.cols["enabled"][row] = enabled
+        self.version += 1
+        self.cols["version"][row] = self.version
+
+    def local_mask(self) -> np.ndarray:
+        """Rows holding enabled local (point-like) lights."""
+        n = self._n_rows
+        return (
+            self.cols["live"][:n]
+            & self.cols["enabled"][:n]
+            & np.isin(self.cols["type"][:n], LOCAL_TYPE_CODES)
+        )
+
+    def rows_of_type(self, light_type: str) -> np.ndarray:
+        n = self._n_rows
+        m = self.cols["live"][:n] & (self.cols["type"][:n] == TYPE_CODES[light_type])
+        return np.nonzero(m)[0]

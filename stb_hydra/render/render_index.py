@@ -1,0 +1,113 @@
+"""``RenderIndex``: one render prim per scene prim, synced by dirty bits.
+
+It observes a scene index: ``PrimsAdded`` creates render prims through the
+delegate (the prim factory) fully dirty, ``PrimsDirtied`` turns locators into
+dirty bits (``scene.locators.dirty_bits_for``), ``PrimsRemoved`` destroys them.
+``sync_all()`` syncs each dirty prim once with its accumulated bits and keeps
+counters tests can assert on.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+from ..scene.locators import DirtyBits, dirty_bits_for
+from ..scene.scene_index import AddedPrimEntry, DirtiedPrimEntry, SceneIndex
+from .delegate import RenderDelegate
+from .render_prims import RenderPrim
+
+
+@dataclass
+class SyncCounters:
+    """What ``sync_all`` did. ``last`` holds the most recent call's syncs."""
+
+    total: int = 0
+    calls: int = 0
+    by_type: Counter = field(default_factory=Counter)
+    by_bits: Counter = field(default_factory=Counter)  # (prim_type, bits) -> count
+    last: dict[str, DirtyBits] = field(default_factory=dict)
+
+    def reset(self) -> None:
+        self.total = self.calls = 0
+        self.by_type.clear()
+        self.by_bits.clear()
+        self.last.clear()
+
+
+class RenderIndex:
+    def __init__(self, scene_index: SceneIndex, delegate: RenderDelegate) -> None:
+        self.scene_index = scene_index
+        self.delegate = delegate
+        self.prims: dict[str, RenderPrim] = {}
+        self._dirty: dict[str, DirtyBits] = {}
+        self.counters = SyncCounters()
+        scene_index.add_observer(self)
+        self._insert(
+            AddedPrimEntry(p, scene_index.get_prim(p).prim_type) for p in scene_index.prim_paths()
+        )
+
+    # -- observer --
+    def prims_added(self, sender, entries: list[AddedPrimEntry]) -> None:
+        self._insert(entries)
+
+    def prims_removed(self, sender, paths: list[str]) -> None:
+        for p in paths:
+            rp = self.prims.pop(p, None)
+            self._dirty.pop(p, None)
+            if rp is not None:
+                self.delegate.destroy_prim(rp)
+
+    def prims_dirtied(self, sender, entries: list[DirtiedPrimEntry]) -> None:
+        prims = self.prims
+        dirty = self._dirty
+        for e in entries:
+            rp = prims.get(e.path)
+            if rp is None:
+                continue
+            bits = dirty_bits_for(rp.prim_type, e.locators)
+            if bits:
+                dirty[e.path] = dirty.get(e.path, DirtyBits.Clean) | bits
+
+    def _insert(self, entries) -> None:
+        for e in entries:
+            old = self.prims.pop(e.path, None)
+            if old is not None:
+                self.delegate.destroy_prim(old)
+            rp = self.delegate.create_prim(e.prim_type, e.path)
+            if rp is not None:
+                self.prims[e.path] = rp
+                self._dirty[e.path] = DirtyBits.AllDirty
+
+    # -- sync --
+    @property
+    def dirty_count(self) -> int:
+        return len(self._dirty)
+
+    def sync_all(self) -> int:
+        """Sync every dirty prim (materials and cameras first, then geometry and
+        lights). Returns the number of prims synced."""
+        if not self._dirty:
+            self.counters.last = {}
+            self.counters.calls += 1
+            return 0
+        dirty, self._dirty = self._dirty, {}
+        si = self.scene_index
+        c = self.counters
+        c.calls += 1
+        c.last = dirty
+        order = sorted(dirty, key=lambda p: _SYNC_ORDER.get(self.prims[p].prim_type, 3))
+        for path in order:
+            rp = self.prims.get(path)
+            sp = si.get_prim(path)
+            if rp is None or sp is None:
+                continue
+            bits = dirty[path]
+            rp.sync(sp.data_source, bits)
+            c.by_type[rp.prim_type] += 1
+            c.by_bits[(rp.prim_type, int(bits))] += 1
+        c.total += len(dirty)
+        return len(dirty)
+
+
+_SYNC_ORDER = {"material": 0, "camera": 1, "mesh": 2}

@@ -1,0 +1,147 @@
+"""Render prims (Hydra's Sprims/Rprims): CPU-side state synced from data sources.
+
+Each ``sync(data_source, bits)`` re-reads only what its dirty bits say and
+records the bits it consumed in ``pending_bits`` so the delegate's
+``commit_resources`` can upload exactly what changed.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..scene import prims
+from ..scene.locators import DirtyBits as D
+
+if TYPE_CHECKING:
+    from .delegate import RenderDelegate
+
+_LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyCollection | D.DirtyResource
+
+
+class RenderPrim:
+    prim_type: str = ""
+
+    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+        self.delegate = delegate
+        self.path = path
+        self.prim_type = prim_type
+        #: Bits synced since the delegate last committed this prim's resources.
+        self.pending_bits = D.Clean
+
+    def sync(self, ds, bits: D) -> None:
+        raise NotImplementedError
+
+    def finalize(self) -> None:
+        """Release delegate resources (prim removed)."""
+
+
+class LightSprim(RenderPrim):
+    def __init__(self, delegate, path, prim_type) -> None:
+        super().__init__(delegate, path, prim_type)
+        self.light: prims.LightPrim | None = None
+        self.row = delegate.light_table.alloc(path)
+        self.valid = False  # enabled before visibility
+
+    def sync(self, ds, bits: D) -> None:
+        lp = self.light
+        if lp is None or bits & _LIGHT_FULL:
+            lp = ds.light()
+            self.valid = lp.valid
+            self.light = lp
+            self.delegate.write_light(self.row, lp)
+        else:
+            if bits & D.DirtyTransform and not ds.update_transform(lp):
+                lp = ds.light()
+                self.light = lp
+                self.delegate.write_light(self.row, lp)
+            elif bits & D.DirtyTransform:
+                self.delegate.light_table.write_transform(self.row, lp)
+            if bits & D.DirtyVisibility:
+                lp.enabled = self.valid and ds.visible()
+                self.delegate.light_table.set_enabled(self.row, lp.enabled)
+        self.pending_bits |= bits
+
+    def finalize(self) -> None:
+        self.delegate.light_table.free(self.path)
+        self.delegate.release_light(self.path)
+
+
+class MeshRprim(RenderPrim):
+    def __init__(self, delegate, path, prim_type) -> None:
+        super().__init__(delegate, path, prim_type)
+        self.mesh: prims.MeshPrim | None = None
+
+    def sync(self, ds, bits: D) -> None:
+        m = self.mesh
+        geom_bits = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
+        if m is None or bits & geom_bits:
+            g = ds.geometry()
+            if g is None:
+                pts = np.zeros((0, 3), np.float32)
+                g_n, g_i, vc, dc, dsided = pts, np.zeros((0, 3), np.uint32), None, None, False
+            else:
+                pts, g_n, g_i, vc, dc, dsided = (
+                    g.points,
+                    g.normals,
+                    g.indices,
+                    g.vertex_colors,
+                    g.display_color,
+                    g.double_sided,
+                )
+            old = m
+            m = prims.MeshPrim(self.path, pts, g_n, g_i, vertex_colors=vc, double_sided=dsided)
+            if dc is not None:
+                m.display_color = np.asarray(dc, dtype=np.float64)
+            m.geometry_key = ds.geometry_key()
+            if old is not None and not bits & D.DirtyTransform:
+                m.transform = old.transform
+                m.instance_transforms = old.instance_transforms
+                m.visible, m.material, m.dynamic = old.visible, old.material, old.dynamic
+            else:
+                bits |= D.DirtyTransform | D.DirtyInstancer | D.DirtyVisibility
+                bits |= D.DirtyMaterialId | D.DirtyStbFlags
+            self.mesh = m
+        if bits & D.DirtyTransform:
+            m.transform = ds.world_matrix() if ds.entry.instancer is None else np.eye(4)
+        if bits & (D.DirtyInstancer | D.DirtyTransform):
+            m.instance_transforms = ds.instance_transforms()
+        if bits & D.DirtyVisibility:
+            m.visible = ds.visible()
+        if bits & D.DirtyMaterialId:
+            m.material = ds.material()
+        if bits & D.DirtyStbFlags or bits & D.DirtyTransform:
+            m.dynamic = ds.dynamic()
+        self.pending_bits |= bits
+
+    def finalize(self) -> None:
+        self.delegate.release_mesh(self.path)
+
+
+class CameraSprim(RenderPrim):
+    def __init__(self, delegate, path, prim_type) -> None:
+        super().__init__(delegate, path, prim_type)
+        self.camera: prims.CameraPrim | None = None
+        self.exposure_scale = 1.0
+
+    def sync(self, ds, bits: D) -> None:
+        if self.camera is None or bits & (D.DirtyParams | D.DirtyClipPlanes):
+            self.camera = ds.camera()
+            self.exposure_scale = ds.exposure_scale()
+        elif bits & D.DirtyTransform:
+            t = ds.camera().transform
+            self.camera.transform = t
+        self.pending_bits |= bits
+
+
+class MaterialSprim(RenderPrim):
+    def __init__(self, delegate, path, prim_type) -> None:
+        super().__init__(delegate, path, prim_type)
+        self.material: prims.MaterialPrim | None = None
+
+    def sync(self, ds, bits: D) -> None:
+        self.material = ds.material()
+        for w in self.material.warnings:
+            self.delegate.warn_once("material:" + w, w)
+        self.pending_bits |= bits

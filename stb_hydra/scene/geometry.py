@@ -1,0 +1,386 @@
+"""Geometry extraction: UsdGeom.Mesh triangulation and implicit-shape tessellation.
+
+Everything returned is in the prim's object space (stage units) with
+counter-clockwise (right-handed) triangle winding. Vectorised with numpy: no
+Python loop over faces or vertices.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pxr import Usd, UsdGeom
+
+#: Corners whose smooth vertex normal deviates from the face normal by more than
+#: this use the face normal (hard edge) -- cubes stay faceted, spheres smooth.
+CREASE_ANGLE_DEG = 45.0
+#: Segments of tessellated implicit shapes around their axis / along latitude.
+IMPLICIT_SEGMENTS = 32
+IMPLICIT_RINGS = 16
+
+IMPLICIT_TYPES = (
+    "Sphere",
+    "Cube",
+    "Cylinder",
+    "Cylinder_1",
+    "Cone",
+    "Capsule",
+    "Capsule_1",
+    "Plane",
+)
+MESH_TYPES = ("Mesh", *IMPLICIT_TYPES)
+
+
+@dataclass
+class MeshGeometry:
+    points: np.ndarray  # (n, 3) float32
+    normals: np.ndarray  # (n, 3) float32
+    indices: np.ndarray  # (m, 3) uint32
+    vertex_colors: np.ndarray | None = None  # (n, 3) float32
+    display_color: np.ndarray | None = None  # (3,) constant colour
+    double_sided: bool = False
+    warnings: tuple[str, ...] = ()
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(n > 1e-20, v / np.maximum(n, 1e-30), np.array([0.0, 1.0, 0.0]))
+
+
+def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None):
+    """Fan-triangulate polygons. Returns (tri_corner_index (m,3) into the
+    face-vertex array, tri_face (m,) the source face of each triangle)."""
+    counts = np.asarray(counts, dtype=np.int64)
+    nface = len(counts)
+    starts = np.zeros(nface, dtype=np.int64)
+    if nface:
+        starts[1:] = np.cumsum(counts)[:-1]
+    valid = counts >= 3
+    if holes is not None and len(holes):
+        h = np.asarray(holes, dtype=np.int64)
+        h = h[(h >= 0) & (h < nface)]
+        valid[h] = False
+    ntri = np.where(valid, counts - 2, 0)
+    total = int(ntri.sum())
+    face = np.repeat(np.arange(nface), ntri)
+    # k-th triangle within its face
+    first = np.zeros(nface, dtype=np.int64)
+    if nface:
+        first[1:] = np.cumsum(ntri)[:-1]
+    k = np.arange(total) - first[face]
+    s = starts[face]
+    corners = np.stack([s, s + k + 1, s + k + 2], axis=1)
+    return corners, face
+
+
+def _primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode):
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
+    if not pv or not pv.HasAuthoredValue():
+        return None, None
+    val = pv.ComputeFlattened(time)
+    if val is None:
+        return None, None
+    return np.asarray(val), pv.GetInterpolation()
+
+
+def _expand(values: np.ndarray, interp: str, n_points: int, n_faces: int, fv_index, face_of_corner):
+    """Per-face-vertex array for a primvar of any interpolation (None when sizes mismatch)."""
+    v = np.asarray(values)
+    if interp == UsdGeom.Tokens.constant:
+        return np.broadcast_to(
+            v.reshape(-1)[:3] if v.ndim == 1 else v[0],
+            (len(fv_index), v.shape[-1] if v.ndim > 1 else 3),
+        )
+    if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+        if len(v) < n_points:
+            return None
+        return v[fv_index]
+    if interp == UsdGeom.Tokens.uniform:
+        if len(v) < n_faces:
+            return None
+        return v[face_of_corner]
+    if interp == UsdGeom.Tokens.faceVarying:
+        if len(v) < len(fv_index):
+            return None
+        return v[: len(fv_index)]
+    return None
+
+
+def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | None:
+    """Triangulated geometry of a Mesh or implicit gprim; None when empty/invalid."""
+    tname = prim.GetTypeName()
+    if tname in IMPLICIT_TYPES:
+        return tessellate_implicit(prim, time)
+    mesh = UsdGeom.Mesh(prim)
+    pts = mesh.GetPointsAttr().Get(time)
+    counts = mesh.GetFaceVertexCountsAttr().Get(time)
+    fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
+    if pts is None or counts is None or fvi is None or len(pts) == 0 or len(counts) == 0:
+        return None
+    points = np.asarray(pts, dtype=np.float32).reshape(-1, 3)
+    counts = np.asarray(counts, dtype=np.int64)
+    fvi = np.asarray(fvi, dtype=np.int64)
+    warnings: list[str] = []
+    if counts.sum() != len(fvi) or (len(fvi) and (fvi.min() < 0 or fvi.max() >= len(points))):
+        return MeshGeometry(
+            np.zeros((0, 3), np.float32),
+            np.zeros((0, 3), np.float32),
+            np.zeros((0, 3), np.uint32),
+            warnings=(f"mesh <{prim.GetPath()}>: inconsistent topology; skipped",),
+        )
+    if not np.all(np.isfinite(points)):
+        warnings.append(f"mesh <{prim.GetPath()}>: non-finite points replaced by 0")
+        points = np.where(np.isfinite(points), points, 0.0).astype(np.float32)
+    holes = mesh.GetHoleIndicesAttr().Get(time)
+    corners, tri_face = triangulate(counts, fvi, np.asarray(holes) if holes else None)
+    left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
+    if left:
+        corners = corners[:, [0, 2, 1]]
+    nface = len(counts)
+    face_of_corner = np.repeat(np.arange(nface), counts)
+
+    # Authored normals (primvars:normals wins over normals, as in UsdGeom).
+    nvals, ninterp = _primvar(prim, "normals", time)
+    if nvals is None:
+        a = mesh.GetNormalsAttr()
+        v = a.Get(time) if a.HasAuthoredValue() else None
+        if v is not None and len(v):
+            nvals, ninterp = np.asarray(v), mesh.GetNormalsInterpolation()
+    cvals, cinterp = _primvar(prim, "displayColor", time)
+    display = None
+    if cvals is not None and cinterp == UsdGeom.Tokens.constant and len(cvals):
+        display = np.asarray(cvals[0], dtype=np.float32)
+        cvals = None
+
+    need_fv = (
+        nvals is not None and ninterp in (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform)
+    ) or (cvals is not None and cinterp in (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform))
+    if nvals is None:
+        normals_fv = _auto_normals(points, fvi, corners, tri_face, nface, face_of_corner, counts)
+        need_fv = True
+    else:
+        normals_fv = _expand(nvals, ninterp, len(points), nface, fvi, face_of_corner)
+        if normals_fv is None:
+            warnings.append(f"mesh <{prim.GetPath()}>: normals have the wrong size; recomputed")
+            normals_fv = _auto_normals(
+                points, fvi, corners, tri_face, nface, face_of_corner, counts
+            )
+            need_fv = True
+        elif left:
+            normals_fv = normals_fv  # normals are authored for the stated orientation
+    colors_fv = None
+    if cvals is not None:
+        colors_fv = _expand(cvals, cinterp, len(points), nface, fvi, face_of_corner)
+
+    if (
+        not need_fv
+        and ninterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
+        and nvals is not None
+    ):
+        # Shared vertices: keep the point indexing.
+        normals = _unit(np.asarray(nvals, dtype=np.float32)[: len(points)]).astype(np.float32)
+        vcols = None
+        if cvals is not None and cinterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+            vcols = np.asarray(cvals, dtype=np.float32)[: len(points)]
+        tri = fvi[corners].astype(np.uint32)
+        return MeshGeometry(
+            points, normals, tri, vcols, display, _double_sided(prim), tuple(warnings)
+        )
+
+    # Face-varying layout: one vertex per corner that is used by a triangle.
+    used = np.unique(corners)
+    remap = np.full(len(fvi), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    out_pts = points[fvi[used]]
+    out_n = _unit(np.asarray(normals_fv, dtype=np.float32)[used]).astype(np.float32)
+    out_c = None
+    if colors_fv is not None:
+        out_c = np.asarray(colors_fv, dtype=np.float32)[used]
+    tri = remap[corners].astype(np.uint32)
+    return MeshGeometry(out_pts, out_n, tri, out_c, display, _double_sided(prim), tuple(warnings))
+
+
+def _double_sided(prim: Usd.Prim) -> bool:
+    a = prim.GetAttribute("doubleSided")
+    return bool(a.Get()) if a and a.HasAuthoredValue() else False
+
+
+def _auto_normals(points, fvi, corners, tri_face, nface, face_of_corner, counts) -> np.ndarray:
+    """Per face-vertex normals: smooth, but faceted where the smooth normal
+    deviates from the face normal by more than ``CREASE_ANGLE_DEG``."""
+    p = points.astype(np.float64)
+    tri_pts = p[fvi[corners]]
+    tn = np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0])  # area-weighted
+    face_n = np.zeros((nface, 3))
+    np.add.at(face_n, tri_face, tn)
+    face_unit = _unit(face_n)
+    vert_n = np.zeros((len(points), 3))
+    np.add.at(vert_n, fvi, face_n[face_of_corner])
+    vert_unit = _unit(vert_n)
+    smooth = vert_unit[fvi]
+    flat = face_unit[face_of_corner]
+    cos_c = math.cos(math.radians(CREASE_ANGLE_DEG))
+    use_flat = np.sum(smooth * flat, axis=1) < cos_c
+    return np.where(use_flat[:, None], flat, smooth)
+
+
+# --- implicit shapes ---------------------------------------------------------------------
+
+
+def _axis_frame(axis: str) -> np.ndarray:
+    """Rows: the shape's local (u, v, axis) in object space."""
+    if axis == "X":
+        return np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    if axis == "Y":
+        return np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    return np.eye(3)
+
+
+def _grid_indices(rows: int, cols: int) -> np.ndarray:
+    """Quads of a (rows+1) x (cols+1) vertex grid (cols wraps not duplicated)."""
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    a = r * (cols + 1) + c
+    b = a + 1
+    d = a + (cols + 1)
+    e = d + 1
+    t1 = np.stack([a, b, d], axis=-1).reshape(-1, 3)
+    t2 = np.stack([b, e, d], axis=-1).reshape(-1, 3)
+    return np.concatenate([t1, t2]).astype(np.uint32)
+
+
+def _surface_of_revolution(profile_r: np.ndarray, profile_z: np.ndarray, prof_nr, prof_nz, frame):
+    """Revolve a (r, z) profile about the axis. Returns points, normals, tris."""
+    seg = IMPLICIT_SEGMENTS
+    phi = np.linspace(0.0, 2.0 * math.pi, seg + 1)
+    cp, sp = np.cos(phi), np.sin(phi)
+    r = profile_r[:, None]
+    shape = (len(profile_r), seg + 1)
+    pts = np.stack([r * cp, r * sp, np.broadcast_to(profile_z[:, None], shape)], axis=-1)
+    nr = prof_nr[:, None]
+    nrm = np.stack([nr * cp, nr * sp, np.broadcast_to(prof_nz[:, None], shape)], axis=-1)
+    pts = pts.reshape(-1, 3) @ frame
+    nrm = nrm.reshape(-1, 3) @ frame
+    tris = _grid_indices(len(profile_r) - 1, seg)
+    return pts, nrm, tris
+
+
+def _disk(radius: float, z: float, up: bool, frame):
+    seg = IMPLICIT_SEGMENTS
+    phi = np.linspace(0.0, 2.0 * math.pi, seg, endpoint=False)
+    ring = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.full(seg, z)], axis=1)
+    pts = np.vstack([[0.0, 0.0, z], ring])
+    i = np.arange(seg)
+    tris = np.stack([np.zeros(seg, int), 1 + i, 1 + (i + 1) % seg], axis=1)
+    if not up:
+        tris = tris[:, [0, 2, 1]]
+    n = np.tile([0.0, 0.0, 1.0 if up else -1.0], (len(pts), 1))
+    return pts @ frame, n @ frame, tris.astype(np.uint32)
+
+
+def _merge(parts):
+    pts, nrm, tris, off = [], [], [], 0
+    for p, n, t in parts:
+        pts.append(p)
+        nrm.append(n)
+        tris.append(t + off)
+        off += len(p)
+    return np.vstack(pts), np.vstack(nrm), np.vstack(tris)
+
+
+def _get(prim: Usd.Prim, name: str, default, time):
+    a = prim.GetAttribute(name)
+    v = a.Get(time) if a else None
+    return default if v is None else v
+
+
+def tessellate_implicit(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | None:
+    t = prim.GetTypeName()
+    axis = str(_get(prim, "axis", "Z", time))
+    frame = _axis_frame(axis)
+    rings = IMPLICIT_RINGS
+    if t == "Sphere":
+        r = float(_get(prim, "radius", 1.0, time))
+        th = np.linspace(0.0, math.pi, rings + 1)
+        pr, pz = np.sin(th), -np.cos(th)
+        pts, nrm, tris = _surface_of_revolution(r * pr, r * pz, pr, pz, np.eye(3))
+    elif t == "Cube":
+        s = float(_get(prim, "size", 2.0, time)) * 0.5
+        pts, nrm, tris = _cube(s)
+    elif t in ("Cylinder", "Cylinder_1", "Cone"):
+        h = float(_get(prim, "height", 2.0, time)) * 0.5
+        if t == "Cone":
+            rb, rt = float(_get(prim, "radius", 1.0, time)), 0.0
+        elif t == "Cylinder_1":
+            rb = float(_get(prim, "radiusBottom", 1.0, time))
+            rt = float(_get(prim, "radiusTop", 1.0, time))
+        else:
+            rb = rt = float(_get(prim, "radius", 1.0, time))
+        slope = math.atan2(rb - rt, 2 * h)
+        pr = np.array([rb, rt])
+        pz = np.array([-h, h])
+        nr = np.full(2, math.cos(slope))
+        nz = np.full(2, math.sin(slope))
+        parts = [_surface_of_revolution(pr, pz, nr, nz, frame)]
+        if rb > 0:
+            parts.append(_disk(rb, -h, False, frame))
+        if rt > 0:
+            parts.append(_disk(rt, h, True, frame))
+        pts, nrm, tris = _merge(parts)
+    elif t in ("Capsule", "Capsule_1"):
+        r = float(_get(prim, "radius", 0.5, time))
+        h = float(_get(prim, "height", 1.0, time)) * 0.5
+        th = np.linspace(0.0, math.pi, rings + 1)
+        pr, pz = np.sin(th), -np.cos(th)
+        z = r * pz + np.where(th < math.pi / 2, -h, h)
+        # duplicate the equator so the cylinder band exists
+        half = rings // 2
+        z = np.insert(z, half + 1, h)
+        z[half] = -h
+        prr = np.insert(pr, half + 1, 1.0)
+        pzz = np.insert(pz, half + 1, 0.0)
+        pts, nrm, tris = _surface_of_revolution(r * prr, z, prr, pzz, frame)
+    elif t == "Plane":
+        w = float(_get(prim, "width", 2.0, time)) * 0.5
+        ln = float(_get(prim, "length", 2.0, time)) * 0.5
+        pts = np.array([[-w, -ln, 0], [w, -ln, 0], [w, ln, 0], [-w, ln, 0]], dtype=np.float64)
+        nrm = np.tile([0.0, 0.0, 1.0], (4, 1))
+        tris = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+        pfr = {
+            "X": np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]]),
+            "Y": np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]),
+        }
+        f = pfr.get(axis, np.eye(3)).astype(np.float64)
+        pts, nrm = pts @ f, nrm @ f
+    else:
+        return None
+    col, _ = _primvar(prim, "displayColor", time)
+    display = np.asarray(col[0], dtype=np.float32) if col is not None and len(col) else None
+    return MeshGeometry(
+        np.asarray(pts, np.float32),
+        _unit(np.asarray(nrm, np.float64)).astype(np.float32),
+        np.asarray(tris, np.uint32),
+        None,
+        display,
+        _double_sided(prim) or t == "Plane",
+    )
+
+
+def _cube(s: float):
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            u = np.zeros(3)
+            u[(axis + 1) % 3] = 1.0
+            v = np.cross(n, u)
+            c = n * s
+            quad = np.array(
+                [c - u * s - v * s, c + u * s - v * s, c + u * s + v * s, c - u * s + v * s]
+            )
+            faces.append(
+                (quad, np.tile(n, (4, 1)), np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32))
+            )
+    return _merge(faces)

@@ -1,0 +1,708 @@
+"""UsdLux -> :class:`~stb_hydra.scene.prims.LightPrim` in physical units.
+
+Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
+
+* ``L = intensity * 2^exposure * color [* blackbody(T)]`` in nits; blackbody
+  RGB is UsdLux's ``BlackbodyTemperatureAsRgb`` divided by its 6500 K value so
+  6500 K is exactly white.
+* ``normalize`` divides L by the world-space surface area (sphere 4 pi r^2,
+  disk pi r^2, rect w h, cylinder 2 pi r l, mesh: its area).
+* Far field: sphere I = L pi r^2 (isotropic); disk I0 = L pi r^2 and rect
+  I0 = L w h with a one-sided cosine lobe about the -Z axis; cylinder
+  I0 = L 2 r l times sin(angle to its X axis); ``treatAsPoint`` keeps the radius.
+* ShapingAPI: cone cut-off/softness/focus/focusTint about -Z, IES sampled at the
+  light-space polar angle from -Z (nadir) after ``angleScale``; the profile
+  value is a factor on L (divided by the profile power when normalised).
+* DistantLight: ``intensity`` -> illuminance (lux) facing the light:
+  ``E = L * pi sin^2(theta_max)`` (theta_max = angle/2), ``E = L`` when the
+  angle is 0 or ``normalize`` is on. DomeLight: uniform radiance L (nits),
+  times the solid-angle average of its texture.
+* Positions/directions/lengths are in the render frame (Y up, metres).
+
+Bad input never raises: the light is disabled and a one-line warning naming the
+prim says why.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from functools import lru_cache
+
+import numpy as np
+from pxr import Sdf, Usd, UsdLux
+
+from .. import limits
+from . import prims
+from .prims import LightPrim
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance weights
+
+_TYPE_BY_SCHEMA = {
+    "SphereLight": prims.SPHERE_LIGHT,
+    "DiskLight": prims.DISK_LIGHT,
+    "RectLight": prims.RECT_LIGHT,
+    "CylinderLight": prims.CYLINDER_LIGHT,
+    "DistantLight": prims.DISTANT_LIGHT,
+    "DomeLight": prims.DOME_LIGHT,
+    "DomeLight_1": prims.DOME_LIGHT,
+    "PortalLight": prims.PORTAL_LIGHT,
+    "GeometryLight": prims.MESH_LIGHT,
+}
+
+# Light inputs whose pre-21.02 spelling had no "inputs:" prefix.
+_LEGACY_INPUTS = (
+    "intensity",
+    "exposure",
+    "diffuse",
+    "specular",
+    "normalize",
+    "color",
+    "enableColorTemperature",
+    "colorTemperature",
+    "radius",
+    "width",
+    "height",
+    "length",
+    "angle",
+    "texture:file",
+    "texture:format",
+    "shaping:focus",
+    "shaping:focusTint",
+    "shaping:cone:angle",
+    "shaping:cone:softness",
+    "shaping:ies:file",
+    "shaping:ies:angleScale",
+    "shaping:ies:normalize",
+    "shadow:enable",
+    "shadow:color",
+    "shadow:distance",
+    "shadow:falloff",
+    "shadow:falloffGamma",
+)
+
+
+def light_type_of(prim: Usd.Prim) -> str | None:
+    """Hydra light type token for a prim, or None when it is not a light."""
+    t = _TYPE_BY_SCHEMA.get(prim.GetTypeName())
+    if t is not None:
+        return t
+    if prim.HasAPI(UsdLux.MeshLightAPI):
+        return prims.MESH_LIGHT
+    if prim.HasAPI(UsdLux.LightAPI):
+        # A third-party light type: treat as a sphere-like point emitter.
+        return prims.SPHERE_LIGHT
+    return None
+
+
+@lru_cache(maxsize=512)
+def blackbody_rgb(kelvin: float) -> tuple[float, float, float]:
+    """Linear Rec.709 RGB of a blackbody, normalised so 6500 K -> (1, 1, 1)."""
+    lo, hi = limits.COLOR_TEMPERATURE_RANGE_K
+    k = min(max(float(kelvin), lo), hi)
+    c = UsdLux.BlackbodyTemperatureAsRgb(k)
+    w = UsdLux.BlackbodyTemperatureAsRgb(6500.0)
+    return (c[0] / w[0], c[1] / w[1], c[2] / w[2])
+
+
+class LightReadContext:
+    """Stage-level state shared by light reads (one per scene index)."""
+
+    def __init__(
+        self,
+        stage: Usd.Stage,
+        render_from_stage: np.ndarray,
+        warn: Callable[[str], None],
+        warn_once: Callable[[str, str], None],
+    ) -> None:
+        self.stage = stage
+        self.render_from_stage = render_from_stage
+        self.warn = warn
+        self.warn_once = warn_once
+        self.ies_loader: Callable[[str], object] = _load_ies_cached
+
+
+# --- attribute access ------------------------------------------------------------------
+
+
+class _Attrs:
+    """Authored attribute names of one prim, read once; fallbacks come from the caller.
+
+    Reading only what is authored is several times cheaper than asking for every
+    schema attribute, which matters at 10^4-10^5 lights.
+    """
+
+    __slots__ = ("legacy", "names", "path", "prim", "time")
+
+    def __init__(self, prim: Usd.Prim, time: Usd.TimeCode) -> None:
+        self.prim = prim
+        self.names = set(prim.GetAuthoredPropertyNames())
+        self.time = time
+        self.path = str(prim.GetPath())
+        self.legacy: list[str] = []
+
+    def attr(self, name: str) -> Usd.Attribute | None:
+        if name not in self.names:
+            return None
+        a = self.prim.GetAttribute(name)
+        return a if a else None
+
+    def get(self, name: str, default):
+        if name in self.names:
+            a = self.prim.GetAttribute(name)
+            v = a.Get(self.time) if a else None
+            if v is not None:
+                return v
+        if name.startswith("inputs:"):
+            bare = name[7:]
+            if bare in self.names and bare in _LEGACY_INPUTS:
+                a = self.prim.GetAttribute(bare)
+                v = a.Get(self.time) if a else None
+                if v is not None:
+                    self.legacy.append(bare)
+                    return v
+        return default
+
+    def has(self, name: str) -> bool:
+        return name in self.names or (name.startswith("inputs:") and name[7:] in self.names)
+
+
+def _finite(x) -> bool:
+    """True for a finite number or a sequence of finite numbers (pure Python: hot path)."""
+    try:
+        if isinstance(x, (int, float)):
+            return math.isfinite(x)
+        # Index, never iterate: iterating a Gf.Vec ends in a (slow) boost IndexError.
+        return all(math.isfinite(float(x[i])) for i in range(len(x)))
+    except (TypeError, ValueError):
+        return False
+
+
+def _vec3(v) -> np.ndarray:
+    return np.array([float(v[0]), float(v[1]), float(v[2])], dtype=np.float64)
+
+
+def _row_norm(m: np.ndarray, i: int) -> float:
+    return math.hypot(float(m[i, 0]), float(m[i, 1]), float(m[i, 2]))
+
+
+def _normalized(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    n = math.hypot(float(v[0]), float(v[1]), float(v[2]))
+    return v / n if n > 1e-12 and math.isfinite(n) else fallback
+
+
+# --- IES ------------------------------------------------------------------------------
+
+
+_ies_cache: dict[tuple[str, float], object] = {}
+_ies_by_path: dict[str, object] = {}
+
+
+def _load_ies_cached(path: str):
+    """Load (and cache by path + mtime) an IES profile; raises IesError."""
+    from .ies import load_ies
+
+    try:
+        mtime = os.path.getmtime(path)
+    except OSError:
+        mtime = -1.0
+    key = (path, mtime)
+    prof = _ies_cache.get(key)
+    if prof is None:
+        prof = load_ies(path)
+        _ies_cache[key] = prof
+    _ies_by_path[path] = prof
+    return prof
+
+
+def ies_theta(theta: np.ndarray, angle_scale: float) -> np.ndarray:
+    """UsdLux ``shaping:ies:angleScale`` remap of the light-space polar angle
+    (radians from -Z). Results outside [0, pi] mean "no emission"."""
+    if angle_scale > 0:
+        return theta / angle_scale
+    if angle_scale < 0:
+        return (theta - math.pi) / -angle_scale + math.pi
+    return theta
+
+
+# --- shaping integrals --------------------------------------------------------------------
+
+_NT = 512  # polar quadrature points (midpoint rule)
+_NP = 64  # azimuth points for IES / cylinder
+_PH = (np.arange(_NP) + 0.5) * (2.0 * math.pi / _NP)
+_DPH = 2.0 * math.pi / _NP
+
+
+def cone_factor(theta: np.ndarray, angle_deg: float, softness: float) -> np.ndarray:
+    """UsdLux cone: 1 - smoothstep(start, cutoff, theta); 0 beyond the cutoff."""
+    cutoff = math.radians(min(max(angle_deg, 0.0), 180.0))
+    s = min(max(softness, 0.0), 1.0)
+    start = cutoff * (1.0 - s)
+    if cutoff - start > 1e-9:
+        t = np.clip((theta - start) / (cutoff - start), 0.0, 1.0)
+        f = 1.0 - t * t * (3.0 - 2.0 * t)
+    else:
+        f = np.ones_like(theta)
+    return np.where(theta > cutoff, 0.0, f)
+
+
+def focus_factor(theta: np.ndarray, focus: float) -> np.ndarray:
+    """|cos theta|^focus (focus < 0 ignored)."""
+    if focus <= 0.0:
+        return np.ones_like(theta)
+    return np.abs(np.cos(theta)) ** focus
+
+
+def emission_factor(emission: int, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Far-field shape about -Z: isotropic, one-sided cosine, or cylinder side."""
+    if emission == prims.EMIT_COSINE:
+        return np.maximum(np.cos(theta), 0.0)
+    if emission == prims.EMIT_CYLINDER:
+        # angle to the local X axis: cos(a) = sin(theta) cos(phi)
+        c = np.sin(theta) * np.cos(phi)
+        return np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    return np.ones(np.broadcast(theta, phi).shape)
+
+
+@lru_cache(maxsize=4096)
+def _shape_integral(
+    emission: int,
+    has_cone: bool,
+    cone_angle: float,
+    softness: float,
+    focus: float,
+    ies_key: str | None,
+    angle_scale: float,
+) -> tuple[float, float]:
+    """(integral over the sphere of the normalised distribution, its maximum).
+
+    The distribution is emission x cone x focus x IES/IES_max (focusTint taken
+    as black: the luminous estimate). Cached: prefab lights share parameters.
+    """
+    # Integrate only where the cone lets light out: the hard cut-off then falls
+    # on the grid's edge and the midpoint rule stays accurate (no 1/N step error).
+    tmax = math.radians(min(max(cone_angle, 0.0), 180.0)) if has_cone else math.pi
+    dth = tmax / _NT
+    th = ((np.arange(_NT) + 0.5) * dth)[:, None]
+    ph = _PH[None, :]
+    f = np.broadcast_to(emission_factor(emission, th, ph), (_NT, _NP))
+    if has_cone:
+        f = f * cone_factor(th, cone_angle, softness)
+    f = f * focus_factor(th, focus)
+    if ies_key is not None:
+        prof = _ies_cache_lookup(ies_key)
+        t = ies_theta(np.broadcast_to(th, f.shape), angle_scale)
+        inside = (t >= 0.0) & (t <= math.pi)
+        vals = prof.sample(np.clip(t, 0.0, math.pi), np.broadcast_to(ph, f.shape))
+        mx = max(float(prof.max_candela()), 1e-30)
+        f = f * np.where(inside, vals / mx, 0.0)
+    w = np.sin(th) * dth * _DPH
+    integral = float(np.sum(f * w))
+    return integral, float(np.max(f)) if f.size else 0.0
+
+
+def _ies_cache_lookup(path: str):
+    prof = _ies_by_path.get(path)
+    return prof if prof is not None else _load_ies_cached(path)
+
+
+# --- the reader ------------------------------------------------------------------------
+
+
+def read_light(
+    prim: Usd.Prim,
+    ctx: LightReadContext,
+    time: Usd.TimeCode,
+    world: np.ndarray,
+    visible: bool = True,
+    path: str | None = None,
+) -> LightPrim:
+    """Read one UsdLux light. ``world`` is the light's local-to-render matrix
+    (row-vector convention, metres). Never raises for bad data."""
+    ltype = light_type_of(prim) or prims.SPHERE_LIGHT
+    lp = LightPrim(path=path or str(prim.GetPath()), type=ltype)
+    try:
+        _read_light_into(lp, prim, ctx, time, world, visible)
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
+        lp.enabled = lp.valid = False
+        _warn(lp, ctx, f"could not be read ({type(exc).__name__}: {exc}); light disabled")
+    return lp
+
+
+def _warn(lp: LightPrim, ctx: LightReadContext, msg: str) -> None:
+    text = f"light <{lp.path}>: {msg}"
+    lp.warnings.append(text)
+    ctx.warn(text)
+
+
+_DOWN = np.array([0.0, -1.0, 0.0])
+_XAXIS = np.array([1.0, 0.0, 0.0])
+
+
+def set_transform(lp: LightPrim, world: np.ndarray) -> None:
+    """Position, axes and world scale from a local-to-render matrix."""
+    m = np.asarray(world, dtype=np.float64)
+    lp.transform = m
+    lp.position = m[3, :3].copy()
+    lp.direction = _normalized(-m[2, :3], _DOWN)
+    lp.tangent = _normalized(m[0, :3], _XAXIS)
+    s = (_row_norm(m, 0) + _row_norm(m, 1) + _row_norm(m, 2)) / 3.0
+    lp.world_scale = s if math.isfinite(s) and s > 0 else 1.0
+
+
+def _read_light_into(
+    lp: LightPrim,
+    prim: Usd.Prim,
+    ctx: LightReadContext,
+    time: Usd.TimeCode,
+    world: np.ndarray,
+    visible: bool,
+) -> None:
+    a = _Attrs(prim, time)
+    set_transform(lp, world)
+    s = lp.world_scale
+    if not np.isfinite(world).all():
+        lp.enabled = False
+        _warn(lp, ctx, "non-finite transform; light disabled")
+        return
+
+    applied = set(prim.GetAppliedSchemas())
+    intensity = a.get("inputs:intensity", 50000.0 if lp.type == prims.DISTANT_LIGHT else 1.0)
+    exposure = a.get("inputs:exposure", 0.0)
+    color = a.get("inputs:color", (1.0, 1.0, 1.0))
+    normalize = bool(a.get("inputs:normalize", False))
+    lp.diffuse = float(a.get("inputs:diffuse", 1.0))
+    lp.specular = float(a.get("inputs:specular", 1.0))
+
+    ok = True
+    if not _finite(intensity) or intensity < 0:
+        _warn(lp, ctx, f"intensity {intensity} is not a finite non-negative number; light disabled")
+        ok = False
+    if not _finite(exposure) or abs(exposure) > limits.MAX_ABS_EXPOSURE:
+        _warn(
+            lp,
+            ctx,
+            f"exposure {exposure} outside +-{limits.MAX_ABS_EXPOSURE:g} stops; light disabled",
+        )
+        ok = False
+    if not _finite(color):
+        _warn(lp, ctx, f"colour {tuple(color)} is not finite; light disabled")
+        ok = False
+    for name, val in (("diffuse", lp.diffuse), ("specular", lp.specular)):
+        if not math.isfinite(val):
+            _warn(lp, ctx, f"inputs:{name} {val} is not finite; light disabled")
+            ok = False
+    rgb = _vec3(color) if _finite(color) else np.zeros(3)
+    if ok and rgb.min() < 0:
+        _warn(lp, ctx, f"negative colour {tuple(rgb)} clamped to 0")
+        rgb = np.maximum(rgb, 0.0)
+    if a.get("inputs:enableColorTemperature", False):
+        t = a.get("inputs:colorTemperature", 6500.0)
+        if _finite(t):
+            rgb = rgb * np.array(blackbody_rgb(float(t)))
+        else:
+            _warn(lp, ctx, f"colorTemperature {t} is not finite; ignored")
+    scalar = float(intensity) * 2.0 ** float(exposure) if ok else 0.0
+    L = scalar * rgb  # nits
+
+    # -- shape and far-field intensity --
+    area = 1.0
+    t = lp.type
+    if t in (prims.SPHERE_LIGHT, prims.DISK_LIGHT, prims.CYLINDER_LIGHT):
+        r = a.get("inputs:radius", 0.5)
+        if not _finite(r) or r < 0:
+            _warn(lp, ctx, f"radius {r} is negative or not finite; light disabled")
+            ok, r = False, 0.0
+        lp.radius = float(r) * s
+    if t == prims.RECT_LIGHT:
+        w, h = a.get("inputs:width", 1.0), a.get("inputs:height", 1.0)
+        if not (_finite(w) and _finite(h)) or w < 0 or h < 0:
+            _warn(lp, ctx, f"width/height {w}x{h} negative or not finite; light disabled")
+            ok, w, h = False, 0.0, 0.0
+        sx, sy = _row_norm(world, 0), _row_norm(world, 1)
+        lp.width, lp.height = float(w) * sx, float(h) * sy
+    if t == prims.CYLINDER_LIGHT:
+        ln = a.get("inputs:length", 1.0)
+        if not _finite(ln) or ln < 0:
+            _warn(lp, ctx, f"length {ln} negative or not finite; light disabled")
+            ok, ln = False, 0.0
+        lp.length = float(ln) * _row_norm(world, 0)
+
+    if t == prims.SPHERE_LIGHT:
+        lp.emission = prims.EMIT_ISOTROPIC
+        proj = math.pi * lp.radius**2
+        area = 4.0 * math.pi * lp.radius**2
+    elif t == prims.DISK_LIGHT:
+        lp.emission = prims.EMIT_COSINE
+        proj = area = math.pi * lp.radius**2
+    elif t == prims.RECT_LIGHT:
+        lp.emission = prims.EMIT_COSINE
+        proj = area = lp.width * lp.height
+    elif t == prims.CYLINDER_LIGHT:
+        lp.emission = prims.EMIT_CYLINDER
+        proj = 2.0 * lp.radius * lp.length
+        area = 2.0 * math.pi * lp.radius * lp.length
+    elif t == prims.MESH_LIGHT:
+        lp.emission = prims.EMIT_ISOTROPIC
+        area = _mesh_area(prim, world)
+        proj = area / 4.0  # mean projected area of a closed convex emitter
+        ctx.warn_once(
+            "meshlight",
+            f"light <{lp.path}>: mesh lights are approximated by an isotropic point "
+            "emitter at the mesh centre (one warning per stage)",
+        )
+        c = _mesh_center(prim, world)
+        if c is not None:
+            lp.position = c
+    else:
+        proj = 1.0
+    if t in (prims.DISK_LIGHT, prims.RECT_LIGHT, prims.CYLINDER_LIGHT):
+        ctx.warn_once(
+            "area",
+            f"light <{lp.path}>: disk/rect/cylinder lights are lit as punctual lights "
+            "with their far-field intensity distribution (one warning per stage)",
+        )
+    if normalize and t in prims.LOCAL_LIGHT_TYPES:
+        if area > 0:
+            L = L / area
+        else:
+            _warn(lp, ctx, "normalize on a zero-area light; emits nothing")
+            L = L * 0.0
+
+    # -- shaping --
+    has_shaping = "ShapingAPI" in applied or any(
+        k.startswith(("inputs:shaping:", "shaping:")) for k in a.names
+    )
+    if has_shaping and t in prims.LOCAL_LIGHT_TYPES:
+        ang = a.get("inputs:shaping:cone:angle", 90.0)
+        soft = a.get("inputs:shaping:cone:softness", 0.0)
+        focus = a.get("inputs:shaping:focus", 0.0)
+        tint = a.get("inputs:shaping:focusTint", (0.0, 0.0, 0.0))
+        if not _finite(ang) or ang < 0 or ang > 180:
+            _warn(lp, ctx, f"cone angle {ang} outside [0, 180] degrees; light disabled")
+            ok, ang = False, 180.0
+        if not _finite(soft):
+            _warn(lp, ctx, f"cone softness {soft} is not finite; using 0")
+            soft = 0.0
+        if not _finite(focus):
+            _warn(lp, ctx, f"focus {focus} is not finite; using 0")
+            focus = 0.0
+        lp.has_cone = float(ang) < 180.0
+        lp.cone_angle = float(ang)
+        lp.cone_softness = float(min(max(soft, 0.0), 1.0))
+        lp.focus = float(max(focus, 0.0))
+        lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
+        _read_ies(lp, a, ctx)
+
+    I0 = L * proj  # cd along the axis (before IES)
+    lp.intensity = I0
+
+    # -- distant / dome --
+    if t == prims.DISTANT_LIGHT:
+        ang = a.get("inputs:angle", 0.53)
+        if not _finite(ang) or ang < 0:
+            _warn(lp, ctx, f"angle {ang} negative or not finite; using 0")
+            ang = 0.0
+        lp.angle = float(min(ang, 360.0))
+        tmax = min(math.radians(lp.angle) / 2.0, math.pi)
+        if tmax <= 0.0:
+            size = 1.0
+        elif tmax <= math.pi / 2:
+            size = math.sin(tmax) ** 2 * math.pi
+        else:
+            size = (2.0 - math.sin(tmax) ** 2) * math.pi
+        received = math.pi * math.sin(min(tmax, math.pi / 2)) ** 2 if tmax > 0 else 1.0
+        lp.intensity = L * (received / size if normalize else received)
+    elif t == prims.DOME_LIGHT:
+        lp.intensity = L * _dome_texture_average(lp, prim, a, ctx)
+    elif t == prims.PORTAL_LIGHT:
+        ok = False
+        ctx.warn_once("portal", f"light <{lp.path}>: PortalLight is not supported; ignored")
+
+    # -- shadows --
+    lp.shadow_enable = bool(a.get("inputs:shadow:enable", True))
+    sc = a.get("inputs:shadow:color", (0.0, 0.0, 0.0))
+    if _finite(sc):
+        lp.shadow_color = np.array([min(max(float(sc[i]), 0.0), 1.0) for i in range(3)])
+    else:
+        lp.shadow_color = np.zeros(3)
+    sd = a.get("inputs:shadow:distance", -1.0)
+    sf = a.get("inputs:shadow:falloff", -1.0)
+    sg = a.get("inputs:shadow:falloffGamma", 1.0)
+    lp.shadow_distance = float(sd) * s if _finite(sd) and sd > 0 else -1.0
+    lp.shadow_falloff = float(sf) * s if _finite(sf) and sf > 0 else -1.0
+    if lp.shadow_distance > 0 and lp.shadow_falloff > lp.shadow_distance:
+        lp.shadow_falloff = lp.shadow_distance
+    lp.shadow_falloff_gamma = float(sg) if _finite(sg) and sg > 0 else 1.0
+    upd = a.get("stb:shadow:update", prims.SHADOW_STATIC)
+    if upd not in (prims.SHADOW_STATIC, prims.SHADOW_DYNAMIC):
+        _warn(lp, ctx, f"stb:shadow:update '{upd}' is not static|dynamic; using static")
+        upd = prims.SHADOW_STATIC
+    lp.shadow_update = str(upd)
+
+    # -- linking --
+    for name in ("collection:lightLink:includeRoot", "collection:shadowLink:includeRoot"):
+        inc = a.attr(name)
+        if inc is not None and inc.Get() is False:
+            lp.default_linking = False
+    for rel in prim.GetAuthoredRelationships():
+        if rel.GetName().startswith("collection:") and rel.GetTargets():
+            lp.default_linking = False
+    if not lp.default_linking:
+        ctx.warn_once(
+            "linking",
+            f"light <{lp.path}>: light/shadow linking is not supported; lights affect "
+            "all geometry (one warning per stage)",
+        )
+
+    # -- flux, range --
+    _finish_photometry(lp, a, ctx)
+
+    if a.legacy:
+        names = ", ".join(sorted(set(a.legacy)))
+        _warn(lp, ctx, f"legacy un-namespaced attributes ({names}); use 'inputs:<name>'")
+
+    imax = max(float(lp.intensity[0]), float(lp.intensity[1]), float(lp.intensity[2]))
+    if not (math.isfinite(imax) and imax >= 0):
+        ok = False
+        _warn(lp, ctx, "intensity overflowed to a non-finite value; light disabled")
+    elif (
+        t in prims.LOCAL_LIGHT_TYPES
+        and imax * lp.ies_scale > limits.MAX_INTENSITY_CD
+    ):
+        ok = False
+        _warn(
+            lp,
+            ctx,
+            f"peak intensity {imax * lp.ies_scale:.3g} cd exceeds "
+            f"{limits.MAX_INTENSITY_CD:.0e} cd; light disabled",
+        )
+    lp.valid = bool(ok)
+    lp.enabled = bool(ok and visible)
+
+
+def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
+    asset = a.get("inputs:shaping:ies:file", None)
+    lp.ies_angle_scale = float(a.get("inputs:shaping:ies:angleScale", 0.0))
+    if not math.isfinite(lp.ies_angle_scale):
+        _warn(lp, ctx, "ies:angleScale is not finite; using 0")
+        lp.ies_angle_scale = 0.0
+    lp.ies_normalize = bool(a.get("inputs:shaping:ies:normalize", False))
+    if asset is None:
+        return
+    authored = asset.path if isinstance(asset, Sdf.AssetPath) else str(asset)
+    if not authored:
+        return
+    lp.ies_asset = authored
+    resolved = asset.resolvedPath if isinstance(asset, Sdf.AssetPath) else ""
+    if not resolved:
+        _warn(lp, ctx, f"IES file '{authored}' not found; rendering without a profile")
+        return
+    from .ies import IesError
+
+    try:
+        prof = ctx.ies_loader(resolved)
+    except IesError as exc:
+        _warn(lp, ctx, f"IES file unusable ({exc}); rendering without a profile")
+        return
+    mx = float(prof.max_candela())
+    power = float(prof.power())
+    if not (math.isfinite(mx) and mx > 0):
+        _warn(lp, ctx, f"IES file '{authored}' has zero power; rendering without a profile")
+        return
+    lp.ies_file = resolved
+    lp.ies_power = power
+    # candela = intensity * ies_scale * table/table_max
+    lp.ies_scale = mx / power if lp.ies_normalize else mx
+
+
+def _finish_photometry(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
+    """Luminous flux estimate and influence radius."""
+    iy = float(LUMA @ lp.intensity)
+    if lp.type in prims.LOCAL_LIGHT_TYPES:
+        integ, peak = _shape_integral(
+            lp.emission,
+            lp.has_cone,
+            lp.cone_angle,
+            lp.cone_softness,
+            lp.focus,
+            lp.ies_file,
+            lp.ies_angle_scale,
+        )
+        lp.flux = iy * lp.ies_scale * integ
+        i_max = iy * lp.ies_scale * peak
+        r_auto = math.sqrt(max(i_max, 0.0) / limits.LIGHT_CUTOFF_LUX)
+        r_auto = min(max(r_auto, limits.MIN_LIGHT_RANGE_M), limits.MAX_LIGHT_RANGE_M)
+        rng = a.get("stb:range", -1.0)
+        if _finite(rng) and rng > 0:
+            lp.range = float(rng) * lp.world_scale
+            lp.range_authored = True
+        else:
+            lp.range = r_auto
+    else:
+        lp.flux = 0.0
+        lp.range = math.inf
+
+
+def _mesh_area(prim: Usd.Prim, world: np.ndarray) -> float:
+    from .geometry import read_mesh_geometry
+
+    g = read_mesh_geometry(prim, Usd.TimeCode.Default())
+    if g is None:
+        return 0.0
+    p = (np.c_[g.points, np.ones(len(g.points))] @ world)[:, :3]
+    tri = p[g.indices.astype(np.int64)]
+    return float(
+        0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+    )
+
+
+def _mesh_center(prim: Usd.Prim, world: np.ndarray) -> np.ndarray | None:
+    from .geometry import read_mesh_geometry
+
+    g = read_mesh_geometry(prim, Usd.TimeCode.Default())
+    if g is None or len(g.points) == 0:
+        return None
+    c = g.points.astype(np.float64).mean(axis=0)
+    return (np.r_[c, 1.0] @ world)[:3]
+
+
+_dome_avg_cache: dict[str, np.ndarray] = {}
+
+
+def _dome_texture_average(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx) -> np.ndarray:
+    """Solid-angle-weighted mean RGB of a lat-long dome texture (1 without one)."""
+    asset = a.get("inputs:texture:file", None)
+    if asset is None or not getattr(asset, "path", ""):
+        return np.ones(3)
+    resolved = asset.resolvedPath
+    lp.texture_file = resolved or None
+    if not resolved:
+        _warn(lp, ctx, f"dome texture '{asset.path}' not found; using a uniform white dome")
+        return np.ones(3)
+    cached = _dome_avg_cache.get(resolved)
+    if cached is not None:
+        return cached
+    try:
+        import OpenImageIO as oiio
+
+        buf = oiio.ImageBuf(resolved)
+        if buf.has_error:
+            raise OSError(buf.geterror())
+        # Average on a reduced copy: exact enough for a uniform ambient term.
+        spec = buf.spec()
+        w = max(1, min(spec.width, 256))
+        h = max(1, min(spec.height, 128))
+        small = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, w, 0, h, 0, 1, 0, spec.nchannels))
+        px = np.asarray(small.get_pixels(oiio.FLOAT), dtype=np.float64).reshape(h, w, -1)
+        rgb = px[..., :3] if px.shape[2] >= 3 else np.repeat(px[..., :1], 3, axis=2)
+        rgb = np.where(np.isfinite(rgb), rgb, 0.0)
+        lat = (np.arange(h) + 0.5) / h * math.pi
+        wts = np.sin(lat)[:, None]
+        avg = (rgb * wts[..., None]).sum(axis=(0, 1)) / (wts.sum() * w)
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
+        _warn(lp, ctx, f"dome texture '{asset.path}' unreadable ({exc}); using white")
+        avg = np.ones(3)
+    _dome_avg_cache[resolved] = avg
+    return avg

@@ -1,0 +1,107 @@
+"""UsdShade materials -> :class:`MaterialPrim` (UsdPreviewSurface constant inputs).
+
+Only constant inputs are read. An input driven by a texture reader uses the
+reader's ``inputs:fallback`` (or the UsdPreviewSurface default) and the
+material records a warning; MaterialX-only materials fall back to defaults.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pxr import Sdf, Usd, UsdShade
+
+from .prims import MaterialPrim
+
+_DEFAULTS = {
+    "diffuseColor": (0.18, 0.18, 0.18),
+    "roughness": 0.5,
+    "metallic": 0.0,
+    "emissiveColor": (0.0, 0.0, 0.0),
+    "opacity": 1.0,
+    "useSpecularWorkflow": 0,
+    "specularColor": (0.0, 0.0, 0.0),
+    "ior": 1.5,
+}
+
+
+def _input_value(shader: UsdShade.Shader, name: str, time: Usd.TimeCode, warnings: list[str]):
+    inp = shader.GetInput(name)
+    if not inp:
+        return _DEFAULTS[name]
+    if inp.HasConnectedSource():
+        src = inp.GetConnectedSources()[0]
+        src_shader = UsdShade.Shader(src[0].source.GetPrim()) if src else None
+        warnings.append(f"input '{name}' is connected (textures are not sampled); using a constant")
+        if src_shader:
+            fb = src_shader.GetInput("fallback")
+            v = fb.Get(time) if fb else None
+            if v is not None:
+                try:
+                    arr = np.asarray(v, dtype=np.float64).reshape(-1)
+                    return tuple(arr[:3]) if isinstance(_DEFAULTS[name], tuple) else float(arr[0])
+                except (TypeError, ValueError):
+                    pass
+        return _DEFAULTS[name]
+    v = inp.Get(time)
+    return _DEFAULTS[name] if v is None else v
+
+
+def _color(v) -> np.ndarray:
+    arr = np.asarray(v, dtype=np.float64).reshape(-1)
+    if arr.size < 3:
+        arr = np.full(3, float(arr[0]) if arr.size else 0.0)
+    arr = np.where(np.isfinite(arr[:3]), arr[:3], 0.0)
+    return np.maximum(arr, 0.0)
+
+
+def _scalar(v, lo: float, hi: float, default: float) -> float:
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return default
+    if not np.isfinite(f):
+        return default
+    return min(max(f, lo), hi)
+
+
+def read_material(prim: Usd.Prim, time: Usd.TimeCode) -> MaterialPrim:
+    mp = MaterialPrim(path=str(prim.GetPath()))
+    mat = UsdShade.Material(prim)
+    shader = None
+    try:
+        src = mat.ComputeSurfaceSource()
+        shader = src[0] if src and src[0] else None
+    except Exception:  # noqa: BLE001 - bad input must never crash
+        shader = None
+    if shader is None or not shader.GetPrim().IsValid():
+        mp.warnings.append(f"material <{mp.path}>: no UsdPreviewSurface surface; using defaults")
+        return mp
+    sid = shader.GetShaderId()
+    if sid != "UsdPreviewSurface":
+        mp.warnings.append(
+            f"material <{mp.path}>: surface shader '{sid}' is not UsdPreviewSurface; using defaults"
+        )
+        return mp
+    w: list[str] = []
+    mp.diffuse_color = _color(_input_value(shader, "diffuseColor", time, w))
+    mp.roughness = _scalar(_input_value(shader, "roughness", time, w), 0.0, 1.0, 0.5)
+    mp.metallic = _scalar(_input_value(shader, "metallic", time, w), 0.0, 1.0, 0.0)
+    mp.emissive_color = _color(_input_value(shader, "emissiveColor", time, w))
+    mp.opacity = _scalar(_input_value(shader, "opacity", time, w), 0.0, 1.0, 1.0)
+    mp.use_specular_workflow = bool(_input_value(shader, "useSpecularWorkflow", time, w))
+    mp.specular_color = _color(_input_value(shader, "specularColor", time, w))
+    mp.ior = _scalar(_input_value(shader, "ior", time, w), 1.0, 4.0, 1.5)
+    mp.warnings.extend(f"material <{mp.path}>: {m}" for m in dict.fromkeys(w))
+    return mp
+
+
+def bound_material_path(prim: Usd.Prim) -> str | None:
+    """Path of the material bound for full rendering, or None."""
+    try:
+        mat, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+    except Exception:  # noqa: BLE001 - bad input must never crash
+        return None
+    if not mat:
+        return None
+    p = mat.GetPath()
+    return str(p) if p != Sdf.Path.emptyPath else None
