@@ -55,7 +55,7 @@ EMPTY_LIGHT_INDEX = (1 << SAMPLE_INDEX_BITS) - 1
 SAMPLE_WEIGHT_BITS = 32 - SAMPLE_INDEX_BITS  # 15
 SAMPLE_WEIGHT_LOG2_MIN = -32.0
 SAMPLE_WEIGHT_STEPS_PER_OCTAVE = 512
-SAMPLE_WEIGHT_MAX = 2.0 ** 32
+SAMPLE_WEIGHT_MAX = 2.0**32
 
 #: fp16 (render targets rgba16f) tops out at 65504; every lighting output is
 #: clamped under it so no Inf is ever written.
@@ -72,6 +72,20 @@ IES_TABLE_PHI = 64
 #: Profiles per texture array (GL_MAX_ARRAY_TEXTURE_LAYERS is >= 2048 on GL 4.5).
 MAX_IES_PROFILES = 256
 
+#: Largest IES file read (bytes). Real files are < 100 KB; a 0.1-degree full-sphere
+#: table is ~10 MB of text, so anything bigger is not photometry.
+IES_MAX_FILE_BYTES = 16 * 1024 * 1024
+
+#: Most vertical / horizontal angles per axis: 0.1-degree steps over 360 degrees is 3601.
+IES_MAX_ANGLES = 4096
+
+#: Most candela values (n_vertical * n_horizontal): 8 MB of float64, ~a 0.25-degree
+#: full-sphere grid; caps memory before a hostile header can make us allocate.
+IES_MAX_CANDELA_VALUES = 1_000_000
+
+#: Most TILT=INCLUDE angle/factor pairs (1-degree steps over 0..180 is 181).
+IES_MAX_TILT_PAIRS = 1024
+
 # --- Tiles (STB) ------------------------------------------------------------------------
 
 BIG_TILE_PX = 128
@@ -85,7 +99,62 @@ SMALL_TILE_SAMPLES_MAX = 4
 
 # --- Shadows ----------------------------------------------------------------------------
 
+#: Atlas side (texels, power of two). 4096^2 x 16-bit unorm = 32 MiB: holds 16 maps at
+#: the max size or 16384 at the min size; fits the memory of the mobile-class targets.
 SHADOW_ATLAS_SIZE_DEFAULT = 4096
+#: Largest atlas side accepted: GL 4.5 guarantees GL_MAX_TEXTURE_SIZE >= 16384.
+SHADOW_ATLAS_SIZE_MAX = 16384
+
+#: PCF border (texels) around each map, inside its atlas rect: a 5x5 tent reads
+#: +-2 texels around the centre, +1 for the bilinear/gather footprint -> 3.
+SHADOW_MAP_BORDER_PX = 3
+
+#: Smallest map side (texels, incl. border): 26 px interior = 66 % of the block; below
+#: that the border eats most of the block and the map is no better than no shadow.
+SHADOW_MAP_MIN_SIZE = 32
+#: Largest map side (texels, incl. border): 1/16 of the default atlas, so one hero
+#: light can never take more than a 16th of the shared space (and 1 Mtexel to render).
+SHADOW_MAP_MAX_SIZE = 1024
+
+#: Texels rendered per frame by shadow captures (a spot map of side s costs s^2,
+#: an omni map SHADOW_OMNI_COST_FACTOR * s^2): 2 Mtexel ~ one 1080p depth pre-pass,
+#: so shadow updates never cost more than the G-buffer's depth fill.
+SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT = 2 * 1024 * 1024
+#: Omni capture cost per atlas texel: 6 cube faces of (s/2)^2 = 1.5 s^2 texels.
+SHADOW_OMNI_COST_FACTOR = 1.5
+
+#: Fraction of the per-frame budget reserved for pending static maps (on top of the
+#: guaranteed first static): a burst of statics (level load) drains at >= 1/4 speed
+#: while dynamic hero lights keep >= 3/4 of the budget.
+SHADOW_STATIC_RESERVE_FRACTION = 0.25
+
+#: Resolution hysteresis (octaves) added to each side of a size's rounding band:
+#: size s is kept while the continuous target stays in [s/2^(0.5+h), s*2^(0.5+h)],
+#: i.e. +-19 % past the boundary, so a light at a boundary does not flip every frame.
+SHADOW_RES_HYSTERESIS_OCTAVES = 0.25
+
+#: Map texels per screen pixel of the light's projected influence diameter. Beyond
+#: half the influence radius the light is within 2 stops of LIGHT_CUTOFF_LUX, where
+#: shadow edges are invisible, so the inner disc (half the diameter) sets the density.
+SHADOW_TEXELS_PER_PIXEL = 0.5
+#: Flux (lm) that gets the plain projected size (~ a 75 W-equivalent household bulb).
+SHADOW_REFERENCE_FLUX_LM = 1000.0
+#: Clamp of the sqrt(flux / reference) size factor: +-2 octaves, so neither a
+#: candle nor a stadium light escapes the distance-driven size entirely.
+SHADOW_FLUX_SCALE_RANGE = (0.25, 4.0)
+
+#: Priority multiplier for lights whose influence sphere is outside the view: they
+#: keep their map (no churn when the camera turns) but are downgraded and
+#: refreshed last (16x = 4 octaves of projected size).
+SHADOW_OUT_OF_VIEW_PRIORITY_SCALE = 1.0 / 16.0
+
+#: Under-sized / evicted maps retried per frame (each success costs a re-render).
+SHADOW_UPGRADES_PER_FRAME = 1
+#: Frames before a failed upgrade of the same map is retried (0.5 s at 60 Hz).
+SHADOW_UPGRADE_RETRY_FRAMES = 30
+
+#: Window (frames) of the staleness statistics (10 s at 60 Hz).
+SHADOW_STATS_WINDOW_FRAMES = 600
 
 # --- Misc -------------------------------------------------------------------------------
 
