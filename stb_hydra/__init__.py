@@ -20,10 +20,12 @@ register_schema()
 
 def __getattr__(name: str):
     # Lazy so `import stb_hydra` stays cheap (no GL, no OCIO) for scene-only users.
+    # `stb_hydra.render` resolves to the render package, which is callable and
+    # forwards to `stb_hydra.api.render` (see stb_hydra/render/__init__.py).
     if name == "render":
-        from .api import render
+        import importlib
 
-        return render
+        return importlib.import_module(".render", __name__)
     raise AttributeError(name)
 
 

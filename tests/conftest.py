@@ -25,3 +25,12 @@ def testdata() -> Path:
 @pytest.fixture(scope="session")
 def repo() -> Path:
     return REPO
+
+
+@pytest.fixture(scope="session")
+def gl_ctx():
+    """The process-wide OpenGL 4.3+ context (EGL: llvmpipe here, NVIDIA on GPU hosts).
+    One context per process: the engine and every GL test share it."""
+    from stb_hydra.render.gl import get_context
+
+    return get_context()

@@ -27,14 +27,6 @@ def srgb_oetf(x: float) -> float:
     return 12.92 * x if x <= 0.0031308 else 1.055 * x ** (1.0 / 2.4) - 0.055
 
 
-@pytest.fixture(scope="session")
-def gl_ctx():
-    moderngl = pytest.importorskip("moderngl")
-    ctx = moderngl.create_standalone_context(backend="egl", require=430)
-    yield ctx
-    ctx.release()
-
-
 @pytest.fixture(autouse=True)
 def _no_ocio_env(monkeypatch):
     monkeypatch.delenv("OCIO", raising=False)

@@ -494,6 +494,9 @@ def _read_light_into(
         lp.focus = float(max(focus, 0.0))
         lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
         _read_ies(lp, a, ctx)
+        if lp.ies_file is not None and lp.has_cone:
+            # STB_SPEC: the cone does not clip the IES profile (Arnold test_1316: IES wins).
+            lp.has_cone = False
 
     I0 = L * proj  # cd along the axis (before IES)
     lp.intensity = I0

@@ -1,0 +1,61 @@
+"""The flat Python API (Mitsuba style)::
+
+    import stb_hydra
+    rgb = stb_hydra.render("scene.usda", width=256, height=144)          # (h, w, 3) float32
+    rgb = stb_hydra.render(stage, lighting="sun", time=12, accumulate=4)
+
+Values are scene-linear radiance (nits) in linear Rec.709, times the camera's
+exposure scale (UsdGeomCamera exposure controls); the top row comes first.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pxr import Usd
+
+from .render.engine import Engine, RenderError
+from .render.frame import RenderSettings
+
+__all__ = ["Engine", "RenderError", "RenderSettings", "render"]
+
+
+def render(
+    stage: Usd.Stage | str | Path,
+    *,
+    width: int = 256,
+    height: int | None = None,
+    camera: str | None = None,
+    lighting: str = "reference",
+    time: float | None = None,
+    accumulate: int = 1,
+    seed: int = 0,
+    ambient: float = 0.0,
+    alpha: bool = False,
+    **method_options,
+) -> np.ndarray:
+    """Render one image; returns (h, w, 3) (or (h, w, 4) with ``alpha``) float32.
+
+    ``height`` defaults to the camera's aspect ratio; ``camera`` defaults to the
+    stage's first camera, else a free camera framing the stage bounds;
+    ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails.
+    """
+    settings = RenderSettings(
+        width=width,
+        height=height,
+        camera=camera,
+        lighting=lighting,
+        seed=seed,
+        accumulate=accumulate,
+        ambient=ambient,
+        method_options=method_options,
+    )
+    eng = Engine(stage, settings, time=time)
+    try:
+        eng.request_aovs({"color"})
+        eng.render(time)
+        img = eng.aovs["color"]
+        return np.ascontiguousarray(img if alpha else img[..., :3])
+    finally:
+        eng.release()

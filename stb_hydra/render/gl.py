@@ -1,0 +1,177 @@
+"""OpenGL context and shader loading.
+
+* :func:`get_context` -- one moderngl context per process: standalone EGL by
+  default (Mesa llvmpipe on CPU machines, NVIDIA EGL on GPU machines), or a
+  window's context handed in with :func:`use_context`.
+* :class:`ShaderLibrary` -- loads ``stb_hydra/shaders/<name>.{vert,frag,comp}``,
+  expands ``#include "common/x.glsl"`` (each file once), prepends ``#version``,
+  the limits header and the feature ``#define``s, and caches programs per
+  (sources, defines): only the variants a scene needs are ever compiled.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import moderngl
+
+from .. import limits
+
+SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+GLSL_VERSION = "#version 430 core"
+
+_lock = threading.Lock()
+_ctx: moderngl.Context | None = None
+
+
+class GLError(RuntimeError):
+    """No usable OpenGL 4.3+ context, or a shader failed to compile."""
+
+
+def get_context(backend: str = "egl") -> moderngl.Context:
+    """The process-wide context (created on first use)."""
+    global _ctx
+    with _lock:
+        if _ctx is None:
+            try:
+                _ctx = moderngl.create_standalone_context(backend=backend, require=430)
+            except Exception as exc:  # noqa: BLE001 - report one clear line
+                raise GLError(
+                    f"cannot create an OpenGL 4.3 context with backend '{backend}': {exc}"
+                ) from None
+        return _ctx
+
+
+def use_context(ctx: moderngl.Context) -> None:
+    """Render into an existing context (e.g. a previewer window's)."""
+    global _ctx
+    with _lock:
+        _ctx = ctx
+
+
+def renderer_info(ctx: moderngl.Context) -> str:
+    i = ctx.info
+    return f"{i['GL_RENDERER']} | OpenGL {i['GL_VERSION']} | {i['GL_VENDOR']}"
+
+
+def limit_defines() -> dict[str, object]:
+    """Limits every shader sees (``LIM_<NAME>``)."""
+    return {
+        "LIM_HALF_MAX": f"{limits.HALF_MAX:.1f}",
+        "LIM_MIN_LIGHT_DISTANCE": f"{limits.MIN_LIGHT_DISTANCE_M:.6f}",
+        "LIM_RANGE_FADE_START": f"{limits.RANGE_FADE_START:.6f}",
+        "LIM_IES_THETA": limits.IES_TABLE_THETA,
+        "LIM_IES_PHI": limits.IES_TABLE_PHI,
+        "LIM_SAMPLE_INDEX_BITS": limits.SAMPLE_INDEX_BITS,
+        "LIM_EMPTY_LIGHT_INDEX": f"{limits.EMPTY_LIGHT_INDEX}u",
+        "LIM_WEIGHT_LOG2_MIN": f"{limits.SAMPLE_WEIGHT_LOG2_MIN:.1f}",
+        "LIM_WEIGHT_STEPS": f"{float(limits.SAMPLE_WEIGHT_STEPS_PER_OCTAVE):.1f}",
+        "LIM_PDF_EPSILON": f"{limits.PDF_EPSILON:.3e}",
+    }
+
+
+_INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
+
+
+def _expand(path: Path, seen: set[Path]) -> str:
+    if path in seen:
+        return f"// (already included: {path.name})\n"
+    seen.add(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise GLError(f"shader include not found: {path}") from exc
+
+    def sub(m: re.Match) -> str:
+        inc = (SHADER_DIR / m.group(1)).resolve()
+        return f"// begin {m.group(1)}\n{_expand(inc, seen)}\n// end {m.group(1)}"
+
+    return _INCLUDE.sub(sub, text)
+
+
+def preprocess(name: str, defines: dict[str, object] | None = None) -> str:
+    """Full GLSL source of ``shaders/<name>`` with includes expanded."""
+    head = [GLSL_VERSION]
+    for k, v in {**limit_defines(), **(defines or {})}.items():
+        if v is False or v is None:
+            continue
+        head.append(f"#define {k} {1 if v is True else v}")
+    body = _expand((SHADER_DIR / name).resolve(), set())
+    return "\n".join(head) + "\n#line 1\n" + body
+
+
+@dataclass(frozen=True)
+class ProgramKey:
+    stages: tuple[str, ...]
+    defines: tuple[tuple[str, str], ...]
+
+
+class ShaderLibrary:
+    """Compiles and caches programs for one context."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self._programs: dict[ProgramKey, moderngl.Program] = {}
+        self._compute: dict[ProgramKey, moderngl.ComputeShader] = {}
+        self.compiled = 0
+
+    @staticmethod
+    def _key(stages, defines) -> ProgramKey:
+        d = tuple(sorted((k, str(v)) for k, v in (defines or {}).items() if v is not False))
+        return ProgramKey(tuple(stages), d)
+
+    def program(
+        self, vertex: str, fragment: str | None = None, defines: dict[str, object] | None = None
+    ) -> moderngl.Program:
+        key = self._key((vertex, fragment or ""), defines)
+        prog = self._programs.get(key)
+        if prog is None:
+            vs = preprocess(vertex, defines)
+            fs = preprocess(fragment, defines) if fragment else None
+            try:
+                prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs)
+            except moderngl.Error as exc:
+                raise GLError(f"compiling {vertex} + {fragment} failed:\n{exc}") from None
+            self._programs[key] = prog
+            self.compiled += 1
+        return prog
+
+    def compute(
+        self, name: str, defines: dict[str, object] | None = None
+    ) -> moderngl.ComputeShader:
+        key = self._key((name,), defines)
+        cs = self._compute.get(key)
+        if cs is None:
+            try:
+                cs = self.ctx.compute_shader(preprocess(name, defines))
+            except moderngl.Error as exc:
+                raise GLError(f"compiling {name} failed:\n{exc}") from None
+            self._compute[key] = cs
+            self.compiled += 1
+        return cs
+
+
+_libraries: dict[int, ShaderLibrary] = {}
+
+
+def shader_library(ctx: moderngl.Context) -> ShaderLibrary:
+    lib = _libraries.get(id(ctx))
+    if lib is None or lib.ctx is not ctx:
+        lib = ShaderLibrary(ctx)
+        _libraries[id(ctx)] = lib
+    return lib
+
+
+def set_uniform(prog: moderngl.Program, name: str, value) -> None:
+    """Set a uniform if the (optimised) program still has it."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if hasattr(value, "tobytes"):
+        u.write(value.astype("f4").tobytes() if value.dtype.kind == "f" else value.tobytes())
+    else:
+        u.value = value

@@ -1,0 +1,377 @@
+"""GL render delegate: GPU resources built from render prims.
+
+* Geometry: one vertex/index buffer pair per ``geometry_key`` (instance
+  prototypes share it).
+* Draw batches: meshes grouped by (geometry, resolved material, dynamic) into
+  instanced draws with per-instance model matrices for this and the previous
+  frame (motion vectors).
+* Lights: the FoV-culled std430 buffer (``light_buffer``), uploaded only when
+  the culled set or a culled light changed; IES tables in a 2D texture array.
+
+``commit_resources()`` uploads only what changed since the last commit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from .. import limits
+from ..scene import prims
+from ..scene.locators import DirtyBits as D
+from .delegate import RenderDelegate
+from .light_buffer import LIGHT_STRIDE_BYTES, cull_lights, pack_lights
+
+_GEOM_BITS = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
+_BATCH_BITS = (
+    _GEOM_BITS
+    | D.DirtyTransform
+    | D.DirtyInstancer
+    | D.DirtyVisibility
+    | D.DirtyMaterialId
+    | D.DirtyStbFlags
+)
+
+
+@dataclass
+class GeometryBuffers:
+    vbo: moderngl.Buffer
+    ibo: moderngl.Buffer
+    index_count: int
+    bounds: tuple[np.ndarray, np.ndarray]  # object-space AABB
+    users: set[str] = field(default_factory=set)
+
+
+@dataclass
+class MaterialParams:
+    base: tuple[float, float, float] = (0.18, 0.18, 0.18)
+    use_vertex_color: bool = False
+    roughness: float = 0.5
+    metallic: float = 0.0
+    specular_workflow: bool = False
+    specular_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def key(self) -> tuple:
+        return (
+            self.base,
+            self.use_vertex_color,
+            self.roughness,
+            self.metallic,
+            self.specular_workflow,
+            self.specular_color,
+            self.emissive,
+        )
+
+
+@dataclass
+class DrawBatch:
+    geometry_key: str
+    material: MaterialParams
+    dynamic: bool
+    models: np.ndarray  # (k, 4, 4) float32 this frame
+    prev_models: np.ndarray  # (k, 4, 4) float32 previous frame
+    instance_buffer: moderngl.Buffer | None = None
+    vaos: dict[int, moderngl.VertexArray] = field(default_factory=dict)
+
+    @property
+    def count(self) -> int:
+        return len(self.models)
+
+
+def _t3(v) -> tuple[float, float, float]:
+    a = np.asarray(v, dtype=np.float64).reshape(-1)
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+class GLRenderDelegate(RenderDelegate):
+    def __init__(self, ctx: moderngl.Context) -> None:
+        super().__init__()
+        self.ctx = ctx
+        self.geometry: dict[str, GeometryBuffers] = {}
+        self.batches: list[DrawBatch] = []
+        self._batch_prev: dict[tuple, np.ndarray] = {}
+        self._batches_dirty = True
+        self.light_ssbo: moderngl.Buffer | None = None
+        self.fov_rows = np.zeros(0, dtype=np.int64)
+        self._fov_version = -1
+        self._fov_uploaded_rows: np.ndarray | None = None
+        self.ies_texture: moderngl.TextureArray | None = None
+        self._ies_version = -1
+        self.ies_layer_count = 0
+        self.scene_bounds = (np.zeros(3), np.zeros(3))
+        self.stats = {"geometry_uploads": 0, "light_uploads": 0, "instance_uploads": 0}
+        #: Shadow-map index per FoV light (set by the shadow task), or None.
+        self.fov_shadow_maps: np.ndarray | None = None
+
+    # -- render prim hooks --
+    def release_mesh(self, path: str) -> None:
+        for key, g in list(self.geometry.items()):
+            if path in g.users:
+                g.users.discard(path)
+                if not g.users:
+                    g.vbo.release()
+                    g.ibo.release()
+                    del self.geometry[key]
+        self._batches_dirty = True
+
+    # -- commit --
+    def commit_resources(self) -> None:
+        """Upload changed geometry, rebuild draw batches when meshes changed."""
+        done: set[str] = set()
+        for path, rp in self.meshes.items():
+            bits = rp.pending_bits
+            if not bits:
+                continue
+            if bits & _GEOM_BITS and rp.mesh is not None:
+                self._upload_geometry(path, rp.mesh, done)
+            if bits & _BATCH_BITS:
+                self._batches_dirty = True
+        if any(m.pending_bits for m in self.materials.values()):
+            self._batches_dirty = True
+        if self._batches_dirty:
+            self._rebuild_batches()
+        else:
+            self._age_batches()
+        if self.ies.version != self._ies_version:
+            self._upload_ies()
+        super().commit_resources()
+
+    def _upload_geometry(
+        self, path: str, mesh: prims.MeshPrim, done: set[str] | None = None
+    ) -> None:
+        key = mesh.geometry_key or path
+        g = self.geometry.get(key)
+        if g is not None and done is not None and key in done:
+            g.users.add(path)  # shared prototype already uploaded by a sibling this commit
+            return
+        if done is not None:
+            done.add(key)
+        n = len(mesh.points)
+        cols = mesh.vertex_colors if mesh.vertex_colors is not None else np.zeros((n, 3))
+        data = np.empty((n, 9), dtype=np.float32)
+        data[:, 0:3] = mesh.points
+        data[:, 3:6] = mesh.normals
+        data[:, 6:9] = cols[:n]
+        idx = np.ascontiguousarray(mesh.indices, dtype=np.uint32)
+        bounds = (
+            (mesh.points.min(axis=0), mesh.points.max(axis=0))
+            if n
+            else (np.zeros(3, np.float32), np.zeros(3, np.float32))
+        )
+        if g is None:
+            g = GeometryBuffers(
+                self.ctx.buffer(data.tobytes() if n else b"\0" * 36),
+                self.ctx.buffer(idx.tobytes() if idx.size else b"\0" * 12),
+                int(idx.size),
+                bounds,
+            )
+            self.geometry[key] = g
+        else:
+            g.vbo.orphan(max(data.nbytes, 36))
+            if n:
+                g.vbo.write(data.tobytes())
+            g.ibo.orphan(max(idx.nbytes, 12))
+            if idx.size:
+                g.ibo.write(idx.tobytes())
+            g.index_count = int(idx.size)
+            g.bounds = bounds
+            for b in self.batches:
+                if b.geometry_key == key:
+                    for vao in b.vaos.values():
+                        vao.release()
+                    b.vaos.clear()
+        g.users.add(path)
+        self.stats["geometry_uploads"] += 1
+
+    def resolve_material(self, mesh: prims.MeshPrim) -> MaterialParams:
+        sp = self.materials.get(mesh.material) if mesh.material else None
+        mat = sp.material if sp is not None else None
+        usable = mat is not None and not any("using defaults" in w for w in mat.warnings)
+        if usable:
+            return MaterialParams(
+                base=_t3(mat.diffuse_color),
+                roughness=float(mat.roughness),
+                metallic=float(mat.metallic),
+                specular_workflow=bool(mat.use_specular_workflow),
+                specular_color=_t3(mat.specular_color),
+                emissive=_t3(mat.emissive_color),
+            )
+        return MaterialParams(
+            base=_t3(mesh.display_color), use_vertex_color=mesh.vertex_colors is not None
+        )
+
+    def _rebuild_batches(self) -> None:
+        groups: dict[tuple, list[np.ndarray]] = {}
+        meta: dict[tuple, tuple[str, MaterialParams, bool]] = {}
+        lo = np.full(3, np.inf)
+        hi = np.full(3, -np.inf)
+        for path, rp in self.meshes.items():
+            m = rp.mesh
+            if m is None or not m.visible or len(m.indices) == 0:
+                continue
+            key_g = m.geometry_key or path
+            if key_g not in self.geometry:
+                self._upload_geometry(path, m)
+            mp = self.resolve_material(m)
+            k = (key_g, mp.key(), m.dynamic)
+            xf = m.world_transforms()
+            groups.setdefault(k, []).append(xf)
+            meta[k] = (key_g, mp, m.dynamic)
+            g = self.geometry[key_g]
+            blo, bhi = g.bounds
+            corners = np.array(
+                [
+                    [x, y, z, 1.0]
+                    for x in (blo[0], bhi[0])
+                    for y in (blo[1], bhi[1])
+                    for z in (blo[2], bhi[2])
+                ]
+            )
+            wc = np.einsum("ci,kij->kcj", corners, xf)[..., :3].reshape(-1, 3)
+            wc = wc[np.all(np.isfinite(wc), axis=1)]
+            if len(wc):
+                lo = np.minimum(lo, wc.min(axis=0))
+                hi = np.maximum(hi, wc.max(axis=0))
+        for b in self.batches:
+            if b.instance_buffer is not None:
+                b.instance_buffer.release()
+            for vao in b.vaos.values():
+                vao.release()
+        new: list[DrawBatch] = []
+        prev_map = {}
+        for k, mats in groups.items():
+            models = np.concatenate(mats).astype(np.float32)
+            prev = self._batch_prev.get(k)
+            if prev is None or prev.shape != models.shape:
+                prev = models
+            gk, mp, dyn = meta[k]
+            b = DrawBatch(gk, mp, dyn, models, prev)
+            self._upload_instances(b)
+            new.append(b)
+            prev_map[k] = models
+        self._batch_prev = prev_map
+        self.batches = new
+        self.scene_bounds = (lo, hi) if np.all(np.isfinite(lo)) else (np.zeros(3), np.zeros(3))
+        self._batches_dirty = False
+
+    def _age_batches(self) -> None:
+        """No transform changed: the previous-frame matrices catch up once."""
+        for b in self.batches:
+            if b.prev_models is not b.models and not np.array_equal(b.prev_models, b.models):
+                b.prev_models = b.models
+                self._upload_instances(b)
+
+    def _upload_instances(self, b: DrawBatch) -> None:
+        data = np.concatenate(
+            [b.models.reshape(-1, 16), b.prev_models.reshape(-1, 16)], axis=1
+        ).astype(np.float32)
+        if b.instance_buffer is None:
+            b.instance_buffer = self.ctx.buffer(data.tobytes())
+        else:
+            b.instance_buffer.orphan(data.nbytes)
+            b.instance_buffer.write(data.tobytes())
+        self.stats["instance_uploads"] += 1
+
+    def vertex_array(self, b: DrawBatch, prog: moderngl.Program, depth_only: bool = False):
+        """Instanced VAO of a batch for a program (cached per program)."""
+        key = prog.glo
+        vao = b.vaos.get(key)
+        if vao is None:
+            g = self.geometry[b.geometry_key]
+            if depth_only:
+                content = [
+                    (g.vbo, "3f 24x", "in_pos"),
+                    (b.instance_buffer, "16f 64x/i", "in_model"),
+                ]
+            else:
+                content = [
+                    (g.vbo, "3f 3f 3f", "in_pos", "in_normal", "in_color"),
+                    (b.instance_buffer, "16f 16f/i", "in_model", "in_prev_model"),
+                ]
+            vao = self.ctx.vertex_array(prog, content, index_buffer=g.ibo, index_element_size=4)
+            b.vaos[key] = vao
+        return vao
+
+    # -- lights --
+    def update_fov_lights(self, planes: np.ndarray) -> bool:
+        """Cull against the frustum; upload the packed buffer if anything changed.
+        Returns True when an upload happened."""
+        rows = cull_lights(self.light_table, planes)
+        version = int(self.light_table.version)
+        same_rows = self._fov_uploaded_rows is not None and np.array_equal(
+            rows, self._fov_uploaded_rows
+        )
+        changed = not same_rows
+        if same_rows and version != self._fov_version and len(rows):
+            changed = bool(np.any(self.light_table.cols["version"][rows] > self._fov_version))
+        self.fov_rows = rows
+        if not changed and self.light_ssbo is not None:
+            self._fov_version = version
+            return False
+        packed = pack_lights(self.light_table, rows, self.fov_shadow_maps)
+        nbytes = max(packed.nbytes, LIGHT_STRIDE_BYTES)
+        if self.light_ssbo is None or self.light_ssbo.size < nbytes:
+            if self.light_ssbo is not None:
+                self.light_ssbo.release()
+            self.light_ssbo = self.ctx.buffer(reserve=max(nbytes, 64 * LIGHT_STRIDE_BYTES))
+        if packed.nbytes:
+            self.light_ssbo.write(packed.tobytes())
+        self._fov_uploaded_rows = rows
+        self._fov_version = version
+        self.stats["light_uploads"] += 1
+        return True
+
+    def _upload_ies(self) -> None:
+        from ..scene.lights import _load_ies_cached
+
+        layers = self.ies.layers
+        n = max(layers.values(), default=-1) + 1
+        if self.ies_texture is not None:
+            self.ies_texture.release()
+            self.ies_texture = None
+        self.ies_layer_count = n
+        self._ies_version = self.ies.version
+        if n == 0:
+            return
+        n = min(n, limits.MAX_IES_PROFILES)
+        data = np.zeros((n, limits.IES_TABLE_THETA, limits.IES_TABLE_PHI), dtype=np.float32)
+        for path, layer in layers.items():
+            if layer >= n:
+                continue
+            try:
+                table = _load_ies_cached(path).bake_table()
+            except Exception:  # noqa: BLE001 - a profile that vanished renders flat
+                continue
+            mx = float(np.max(table)) if table.size else 0.0
+            if mx > 0 and np.isfinite(mx):
+                data[layer] = np.nan_to_num(table / mx, nan=0.0, posinf=0.0, neginf=0.0)
+        tex = self.ctx.texture_array(
+            (limits.IES_TABLE_PHI, limits.IES_TABLE_THETA, n), 1, data.tobytes(), dtype="f4"
+        )
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        tex.repeat_x = True
+        tex.repeat_y = False
+        self.ies_texture = tex
+
+    @property
+    def has_ies(self) -> bool:
+        return self.ies_texture is not None
+
+    def release(self) -> None:
+        for g in self.geometry.values():
+            g.vbo.release()
+            g.ibo.release()
+        for b in self.batches:
+            if b.instance_buffer is not None:
+                b.instance_buffer.release()
+            for vao in b.vaos.values():
+                vao.release()
+        if self.light_ssbo is not None:
+            self.light_ssbo.release()
+        if self.ies_texture is not None:
+            self.ies_texture.release()
+        self.geometry.clear()
+        self.batches.clear()

@@ -1,0 +1,20 @@
+"""`reference`: every FoV-culled light evaluated per pixel (exact, O(lights)).
+Shadows of local lights come from the shared shadow functions (unshadowed until
+the shadow atlas exists). This is the ground truth other methods are measured
+against."""
+
+from __future__ import annotations
+
+from .base import LightingMethod, program
+
+
+class ReferenceLighting(LightingMethod):
+    name = "reference"
+
+    def execute(self, frame) -> None:
+        defines = self.scene_defines(frame)
+        if frame.light_count:
+            defines["LOCAL_LIGHTS"] = True
+        prog = program(frame, "lighting_direct.frag", defines)
+        self.bind_common(frame, prog)
+        self.fullscreen_pass(frame, prog, "lighting")

@@ -1,0 +1,15 @@
+"""`sun`: the shadowed sun + dome ambient only (the talk's "sun-only" baseline)."""
+
+from __future__ import annotations
+
+from .base import LightingMethod, program
+
+
+class SunOnlyLighting(LightingMethod):
+    name = "sun"
+    uses_local_lights = False
+
+    def execute(self, frame) -> None:
+        prog = program(frame, "lighting_direct.frag", self.scene_defines(frame))
+        self.bind_common(frame, prog)
+        self.fullscreen_pass(frame, prog, "lighting")

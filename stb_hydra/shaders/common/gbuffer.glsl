@@ -1,0 +1,30 @@
+// Reading the G-buffer (written by gbuffer.frag) into a Surface.
+#ifndef STB_GBUFFER_GLSL
+#define STB_GBUFFER_GLSL
+#include "common/frame.glsl"
+#include "common/packing.glsl"
+#include "common/brdf.glsl"
+
+uniform sampler2D g_depth;      // r32f linear view depth (m), 0 = background
+uniform sampler2D g_normal;     // rg16f octahedral world normal
+uniform sampler2D g_base_rough; // rgba16f base colour, roughness
+uniform sampler2D g_f0_metal;   // rgba16f F0, metallic
+uniform sampler2D g_emission;   // rgba16f emitted radiance (nits)
+
+// False for background pixels.
+bool read_surface(ivec2 px, out Surface s) {
+    float depth = texelFetch(g_depth, px, 0).r;
+    if (depth <= 0.0) return false;
+    vec2 pixel = vec2(px) + 0.5;
+    s.P = world_pos_from_depth(pixel, depth);
+    s.N = oct_decode(texelFetch(g_normal, px, 0).rg);
+    s.V = view_dir(s.P);
+    vec4 br = texelFetch(g_base_rough, px, 0);
+    vec4 fm = texelFetch(g_f0_metal, px, 0);
+    s.roughness = clamp(br.a, 0.02, 1.0);
+    s.alpha = max(s.roughness * s.roughness, 0.002);
+    s.diffuse = br.rgb * (1.0 - fm.a);
+    s.f0 = fm.rgb;
+    return true;
+}
+#endif

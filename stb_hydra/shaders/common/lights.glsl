@@ -1,0 +1,76 @@
+// The packed FoV light buffer (std430 SSBO, binding 0) and the light's emitted
+// intensity towards a direction. Layout written by render/light_buffer.py.
+#ifndef STB_LIGHTS_GLSL
+#define STB_LIGHTS_GLSL
+#include "common/ies.glsl"
+
+struct Light {
+    vec4 pos_range;     // xyz position (m), w influence radius (m)
+    vec4 axis_emit;     // xyz emission axis (light -Z, unit), w emission model (0 iso, 1 cosine, 2 cylinder)
+    vec4 tangent_type;  // xyz light +X (unit), w light type code
+    vec4 intensity;     // rgb peak intensity (cd) before IES, w luminous weight (lm) for big-tile pdf
+    vec4 cone;          // x cos(cutoff), y cutoff (rad), z smooth start (rad), w focus exponent
+    vec4 tint_ies;      // rgb focusTint, w IES layer (-1 none)
+    vec4 ies_shadow;    // x IES scale (cd per table unit), y angleScale, z shadow map (-1 none), w shadow flags
+    vec4 shadow_color;  // rgb shadow colour, w shadow max distance (m, <0 none)
+    vec4 misc;          // x shadow falloff (m), y falloff gamma, z diffuse mult, w specular mult
+};
+
+layout(std430, binding = 0) readonly buffer LightBuffer { Light lights[]; };
+
+const float EMIT_ISOTROPIC = 0.0;
+const float EMIT_COSINE = 1.0;
+const float EMIT_CYLINDER = 2.0;
+
+// Smooth fade to exactly 0 over the last (1 - LIM_RANGE_FADE_START) of the range.
+float range_window(float d, float range) {
+    return 1.0 - smoothstep(range * LIM_RANGE_FADE_START, range, d);
+}
+
+// Angular shape (emission model x cone x focus/tint x IES) towards unit
+// direction `w` leaving the light. RGB: focusTint colours the falloff.
+vec3 light_shape(Light L, vec3 w) {
+    float c = dot(w, L.axis_emit.xyz);      // cos of the angle off the axis
+    float shape = 1.0;
+    if (L.axis_emit.w == EMIT_COSINE) {
+        shape = max(c, 0.0);
+    } else if (L.axis_emit.w == EMIT_CYLINDER) {
+        float ca = dot(w, L.tangent_type.xyz);
+        shape = sqrt(max(1.0 - ca * ca, 0.0));
+    }
+    if (L.cone.y < 3.14159) {
+        float theta = acos(clamp(c, -1.0, 1.0));
+        if (theta > L.cone.y) return vec3(0.0);
+        if (L.cone.y > L.cone.z) {
+            float t = clamp((theta - L.cone.z) / (L.cone.y - L.cone.z), 0.0, 1.0);
+            shape *= 1.0 - t * t * (3.0 - 2.0 * t);
+        }
+    }
+    vec3 tint = vec3(1.0);
+    if (L.cone.w > 0.0) {
+        float f = pow(abs(c), L.cone.w);
+        tint = mix(L.tint_ies.rgb, vec3(1.0), f);
+    }
+#ifdef HAS_IES
+    if (L.tint_ies.w >= 0.0) {
+        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_type.xyz);  // light +Y = Z x X
+        shape *= ies_eval(int(L.tint_ies.w), L.ies_shadow.x, L.ies_shadow.y, c,
+                          dot(w, L.tangent_type.xyz), dot(w, bitangent));
+    }
+#endif
+    return tint * shape;
+}
+
+// Unshadowed illuminance (lux, RGB) facing the light at P, with L the unit
+// direction from P to the light. Zero outside the range.
+vec3 light_illuminance(Light L, vec3 P, out vec3 Ldir, out float dist) {
+    vec3 d = L.pos_range.xyz - P;
+    float d2 = dot(d, d);
+    dist = sqrt(d2);
+    Ldir = d / max(dist, 1e-12);
+    if (dist >= L.pos_range.w) return vec3(0.0);
+    float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
+    vec3 I = L.intensity.rgb * light_shape(L, -Ldir);
+    return I * (range_window(dist, L.pos_range.w) / (r * r));
+}
+#endif

@@ -1,0 +1,53 @@
+// The sun (one shadowed DistantLight) and the dome ambient, shared by every method.
+#ifndef STB_SUN_GLSL
+#define STB_SUN_GLSL
+#include "common/frame.glsl"
+#include "common/brdf.glsl"
+
+#ifdef HAS_SUN_SHADOW
+uniform sampler2DShadow u_sun_shadow;
+
+// 3x3 PCF on the hardware-compared depth map (each tap is a 2x2 bilinear compare).
+float sun_shadow(vec3 P, vec3 N) {
+    vec3 p = P + N * u_sun_mult.w;
+    vec4 c = u_sun_view_proj * vec4(p, 1.0);
+    vec3 q = c.xyz / c.w * 0.5 + 0.5;
+    if (any(lessThan(q.xy, vec2(0.0))) || any(greaterThan(q.xy, vec2(1.0))) || q.z > 1.0) {
+        return 1.0;
+    }
+    float ref = q.z - u_sun_mult.z;
+    float t = u_sun_shadow_color.w;
+    float sum = 0.0;
+    for (int y = -1; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x)
+            sum += texture(u_sun_shadow, vec3(q.xy + vec2(x, y) * t, ref));
+    return sum / 9.0;
+}
+#else
+float sun_shadow(vec3 P, vec3 N) { return 1.0; }
+#endif
+
+// Sun + dome contribution to the reflected radiance (nits).
+vec3 sun_and_ambient(Surface s) {
+    vec3 c = vec3(0.0);
+#ifdef HAS_SUN
+    if (u_sun_dir.w > 0.5) {
+        vec3 d, sp;
+        brdf_eval(s, u_sun_dir.xyz, d, sp);
+        float v = u_sun_illum.w > 0.5 ? sun_shadow(s.P, s.N) : 1.0;
+        vec3 vis = mix(u_sun_shadow_color.rgb, vec3(1.0), v);
+        c += (d * u_sun_mult.x + sp * u_sun_mult.y) * u_sun_illum.rgb * vis;
+    }
+    for (int i = 0; i < int(u_ambient.w); ++i) {
+        vec3 d, sp;
+        brdf_eval(s, u_dist_dir[i].xyz, d, sp);
+        c += (d * u_dist_dir[i].w + sp * u_dist_illum[i].w) * u_dist_illum[i].rgb;
+    }
+#endif
+#ifdef HAS_AMBIENT
+    float NoV = max(dot(s.N, s.V), 1e-4);
+    c += u_ambient.rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV));
+#endif
+    return c;
+}
+#endif
