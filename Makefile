@@ -8,6 +8,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.stb_installed
 OUT    ?= out
+DEMO_FLAGS ?= --lighting reference
 
 .PHONY: demo test lint bench clean sysdeps
 
@@ -22,8 +23,8 @@ sysdeps:
 
 demo: sysdeps $(STAMP)
 	@mkdir -p $(OUT)
-	$(VENV)/bin/stb render usd_scenes/default.usda $(OUT)/default.png --width 745 --height 360 --accumulate 4 --verbose
-	$(VENV)/bin/stb render usd_scenes/default.usda $(OUT)/default.exr --width 745 --height 360 --accumulate 4
+	$(VENV)/bin/stb render usd_scenes/default.usda $(OUT)/default.exr --width 745 --height 360 $(DEMO_FLAGS) --verbose
+	$(VENV)/bin/stb render usd_scenes/default.usda $(OUT)/default.png --width 745 --height 360 $(DEMO_FLAGS)
 
 test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools
