@@ -78,6 +78,7 @@ class RenderBuffers:
         self.size = (0, 0)
         self.textures: dict[str, moderngl.Texture] = {}
         self.fbos: dict[str, moderngl.Framebuffer] = {}
+        self._fbo_deps: dict[str, tuple[str, ...]] = {}
 
     def resize(self, width: int, height: int) -> None:
         if (width, height) == self.size:
@@ -91,12 +92,26 @@ class RenderBuffers:
         if t is None or t.size != tuple(size) or t.components != components or t.dtype != dtype:
             if t is not None:
                 t.release()
+                self._drop_fbos_using(name)
             t = self.ctx.texture(size, components, dtype=dtype)
             if nearest:
                 t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             t.repeat_x = t.repeat_y = False
             self.textures[name] = t
         return t
+
+    def _drop_fbos_using(self, tex_name: str) -> None:
+        for fb_name, deps in list(self._fbo_deps.items()):
+            if tex_name in deps:
+                self.fbos.pop(fb_name).release()
+                del self._fbo_deps[fb_name]
+
+    def set_texture(self, name: str, tex: moderngl.Texture) -> None:
+        old = self.textures.get(name)
+        if old is not None and old is not tex:
+            old.release()
+            self._drop_fbos_using(name)
+        self.textures[name] = tex
 
     def framebuffer(self, name: str, colors: list[str], depth: str | None = None):
         fb = self.fbos.get(name)
@@ -106,6 +121,7 @@ class RenderBuffers:
                 depth_attachment=self.textures[depth] if depth else None,
             )
             self.fbos[name] = fb
+            self._fbo_deps[name] = (*colors, *([depth] if depth else []))
         return fb
 
     def release(self) -> None:
@@ -115,6 +131,7 @@ class RenderBuffers:
             t.release()
         self.fbos.clear()
         self.textures.clear()
+        self._fbo_deps.clear()
 
 
 @dataclass
@@ -136,3 +153,7 @@ class FrameContext:
     color_buffer: str = "lighting"
     #: Last frame of an accumulation sequence (display + readback run only then).
     final: bool = True
+
+    def timings_scope(self, name: str) -> timed:
+        """Time a sub-pass as ``lighting.<name>`` (ctx.finish() when profiling)."""
+        return timed(self.timings, "lighting." + name, self.ctx, self.settings.profile)

@@ -105,6 +105,8 @@ class GLRenderDelegate(RenderDelegate):
         self.stats = {"geometry_uploads": 0, "light_uploads": 0, "instance_uploads": 0}
         #: Shadow-map index per FoV light (set by the shadow task), or None.
         self.fov_shadow_maps: np.ndarray | None = None
+        #: Features present among the FoV lights (selects shader variants).
+        self.fov_flags: dict[str, bool] = {"cones": False, "ies": False, "shadows": False}
 
     # -- render prim hooks --
     def release_mesh(self, path: str) -> None:
@@ -300,6 +302,12 @@ class GLRenderDelegate(RenderDelegate):
         """Cull against the frustum; upload the packed buffer if anything changed.
         Returns True when an upload happened."""
         rows = cull_lights(self.light_table, planes)
+        t = self.light_table
+        self.fov_flags = {
+            "cones": bool(np.any(t.cone_cutoff[rows] < np.float32(3.14159))),
+            "ies": bool(np.any(t.ies_layer[rows] >= 0)),
+            "shadows": bool(np.any(t.shadow_enable[rows])),
+        }
         version = int(self.light_table.version)
         same_rows = self._fov_uploaded_rows is not None and np.array_equal(
             rows, self._fov_uploaded_rows

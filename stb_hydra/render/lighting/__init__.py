@@ -7,6 +7,7 @@ import importlib
 _REGISTRY = {
     "reference": ("reference", "ReferenceLighting"),
     "sun": ("sun_only", "SunOnlyLighting"),
+    "stb": ("stb", "StbLighting"),
 }
 
 

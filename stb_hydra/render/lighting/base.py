@@ -36,8 +36,11 @@ class LightingMethod:
             defines["HAS_SUN_SHADOW"] = True
         if float(frame.ambient.max()) > 0:
             defines["HAS_AMBIENT"] = True
-        if self.uses_local_lights and d.has_ies and frame.light_count:
-            defines["HAS_IES"] = True
+        if self.uses_local_lights and frame.light_count:
+            if d.has_ies and d.fov_flags["ies"]:
+                defines["HAS_IES"] = True
+            if d.fov_flags["cones"]:
+                defines["HAS_CONES"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:

@@ -29,10 +29,7 @@ class GBufferTask(Task):
             bufs.texture(name, comps, dtype)
         zbuf = bufs.textures.get("g_zbuffer")
         if zbuf is None or zbuf.size != bufs.size:
-            if zbuf is not None:
-                zbuf.release()
-            bufs.textures["g_zbuffer"] = ctx.depth_texture(bufs.size)
-            bufs.fbos.pop("gbuffer", None)
+            bufs.set_texture("g_zbuffer", ctx.depth_texture(bufs.size))
         fbo = bufs.framebuffer("gbuffer", [n for n, _, _ in GBUFFER_TARGETS], "g_zbuffer")
         fbo.use()
         ctx.viewport = (0, 0, *bufs.size)

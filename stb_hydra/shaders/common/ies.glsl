@@ -7,8 +7,9 @@
 #ifdef HAS_IES
 uniform sampler2DArray u_ies;
 
-// cos_axis = dot(w, -Z_light); x, y = components of w along the light's +X, +Y.
-float ies_eval(int layer, float scale, float angle_scale, float cos_axis, float x, float y) {
+// Normalised table value (max 1) towards w: cos_axis = dot(w, -Z_light);
+// x, y = components of w along the light's +X, +Y. Multiply by the light's IES scale.
+float ies_table(int layer, float angle_scale, float cos_axis, float x, float y) {
     float theta = acos(clamp(cos_axis, -1.0, 1.0));
     const float PI_ = 3.14159265358979;
     if (angle_scale > 0.0) {
@@ -21,7 +22,7 @@ float ies_eval(int layer, float scale, float angle_scale, float cos_axis, float 
     if (phi < 0.0) phi += 2.0 * PI_;
     float v = (theta / PI_ * float(LIM_IES_THETA - 1) + 0.5) / float(LIM_IES_THETA);
     float u = phi / (2.0 * PI_) + 0.5 / float(LIM_IES_PHI);
-    return scale * texture(u_ies, vec3(u, v, float(layer))).r;
+    return texture(u_ies, vec3(u, v, float(layer))).r;
 }
 #endif
 #endif

@@ -27,10 +27,36 @@ float range_window(float d, float range) {
     return 1.0 - smoothstep(range * LIM_RANGE_FADE_START, range, d);
 }
 
-// Angular shape (emission model x cone x focus/tint x IES) towards unit
-// direction `w` leaving the light. RGB: focusTint colours the falloff.
-vec3 light_shape(Light L, vec3 w) {
+// The light's angular distribution towards unit direction `w` leaving it is
+// split in two so STB can store one part in its 8-bit shadow terms:
+//   light_shape_scalar: cone x normalised IES table, in [0, 1]
+//   light_shape_rgb:    emission model x focusTint colour x IES scale (cd per table unit)
+// light_shape = scalar * rgb.
+float light_shape_scalar(Light L, vec3 w) {
     float c = dot(w, L.axis_emit.xyz);      // cos of the angle off the axis
+    float shape = 1.0;
+#ifdef HAS_CONES
+    if (L.cone.y < 3.14159) {
+        float theta = acos(clamp(c, -1.0, 1.0));
+        if (theta > L.cone.y) return 0.0;
+        if (L.cone.y > L.cone.z) {
+            float t = clamp((theta - L.cone.z) / (L.cone.y - L.cone.z), 0.0, 1.0);
+            shape *= 1.0 - t * t * (3.0 - 2.0 * t);
+        }
+    }
+#endif
+#ifdef HAS_IES
+    if (L.tint_ies.w >= 0.0) {
+        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_type.xyz);  // light +Y = Z x X
+        shape *= ies_table(int(L.tint_ies.w), L.ies_shadow.y, c,
+                           dot(w, L.tangent_type.xyz), dot(w, bitangent));
+    }
+#endif
+    return shape;
+}
+
+vec3 light_shape_rgb(Light L, vec3 w) {
+    float c = dot(w, L.axis_emit.xyz);
     float shape = 1.0;
     if (L.axis_emit.w == EMIT_COSINE) {
         shape = max(c, 0.0);
@@ -38,39 +64,36 @@ vec3 light_shape(Light L, vec3 w) {
         float ca = dot(w, L.tangent_type.xyz);
         shape = sqrt(max(1.0 - ca * ca, 0.0));
     }
-    if (L.cone.y < 3.14159) {
-        float theta = acos(clamp(c, -1.0, 1.0));
-        if (theta > L.cone.y) return vec3(0.0);
-        if (L.cone.y > L.cone.z) {
-            float t = clamp((theta - L.cone.z) / (L.cone.y - L.cone.z), 0.0, 1.0);
-            shape *= 1.0 - t * t * (3.0 - 2.0 * t);
-        }
-    }
+#ifdef HAS_IES
+    if (L.tint_ies.w >= 0.0) shape *= L.ies_shadow.x;
+#endif
     vec3 tint = vec3(1.0);
     if (L.cone.w > 0.0) {
         float f = pow(abs(c), L.cone.w);
         tint = mix(L.tint_ies.rgb, vec3(1.0), f);
     }
-#ifdef HAS_IES
-    if (L.tint_ies.w >= 0.0) {
-        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_type.xyz);  // light +Y = Z x X
-        shape *= ies_eval(int(L.tint_ies.w), L.ies_shadow.x, L.ies_shadow.y, c,
-                          dot(w, L.tangent_type.xyz), dot(w, bitangent));
-    }
-#endif
     return tint * shape;
 }
 
-// Unshadowed illuminance (lux, RGB) facing the light at P, with L the unit
-// direction from P to the light. Zero outside the range.
-vec3 light_illuminance(Light L, vec3 P, out vec3 Ldir, out float dist) {
+vec3 light_shape(Light L, vec3 w) {
+    return light_shape_scalar(L, w) * light_shape_rgb(L, w);
+}
+
+// Inverse-square falloff times the range window (1/m^2); Ldir = unit direction
+// from P to the light, dist in metres. Zero outside the range.
+float light_falloff(Light L, vec3 P, out vec3 Ldir, out float dist) {
     vec3 d = L.pos_range.xyz - P;
-    float d2 = dot(d, d);
-    dist = sqrt(d2);
+    dist = length(d);
     Ldir = d / max(dist, 1e-12);
-    if (dist >= L.pos_range.w) return vec3(0.0);
+    if (dist >= L.pos_range.w) return 0.0;
     float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
-    vec3 I = L.intensity.rgb * light_shape(L, -Ldir);
-    return I * (range_window(dist, L.pos_range.w) / (r * r));
+    return range_window(dist, L.pos_range.w) / (r * r);
+}
+
+// Unshadowed illuminance (lux, RGB) facing the light at P.
+vec3 light_illuminance(Light L, vec3 P, out vec3 Ldir, out float dist) {
+    float f = light_falloff(L, P, Ldir, dist);
+    if (f <= 0.0) return vec3(0.0);
+    return L.intensity.rgb * light_shape(L, -Ldir) * f;
 }
 #endif

@@ -1,0 +1,232 @@
+"""`stb`: Stochastic Tile-Based lighting (Lempiainen, SIGGRAPH 2025), pass by pass.
+
+1. Big-tile sampling (``stb_bigtile.frag``): per 128 px big tile, K reservoir
+   slots filled by stratified reservoir sampling over the FoV lights with the
+   target Phi / d^2 to the tile's central depth segment; 32-bit samples in a
+   block of texels per big tile (4x4 for K = 16).
+2. Small-tile resampling (``stb_smalltile.frag``): per 16 px small tile
+   (interleaved 4 per 32 px footprint with the shipped Gaussian-Poisson quad
+   patterns, offset per frame), stochastic bilinear big-tile choice, SRS of N
+   samples with the refined 4-quad target. One RGBA32UI texel per small tile.
+3. Deferred shadow terms (``stb_shadow.frag``): one 8-bit term per (quad,
+   sample) in a block per small tile: shadow x cone x normalised IES.
+4. Lighting (``stb_lighting.frag``): per pixel its tile's N samples, fixed cost.
+
+Options (``method_options`` / CLI): ``K`` (4..64), ``N`` (1..4), ``big_tile``
+(px, power of two 32..256), ``small_tile`` (16 with interleaving; any even
+power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
+``interleave``, ``stochastic_bilinear``, ``target`` ("segment" | "uniform"),
+``pdf_floor``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from importlib import resources
+
+import moderngl
+import numpy as np
+
+from ... import limits
+from ..gl import set_uniform
+from .base import LightingMethod, program
+
+#: Big-tile target functions: the talk's central segment, uniform (comparison).
+TARGET_MODES = {"segment": 0, "uniform": 1}
+
+#: Slot block (columns, rows) per big tile for each allowed K.
+SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
+
+DEFAULTS = {
+    "K": limits.BIG_TILE_SLOTS_DEFAULT,
+    "N": 1,
+    "big_tile": limits.BIG_TILE_PX,
+    "small_tile": limits.SMALL_TILE_PX,
+    "eps": 0.1,
+    "weight_cap": 8.0,
+    "interleave": True,
+    "stochastic_bilinear": True,
+    "target": "segment",
+    "pdf_floor": 1e-3,
+}
+
+
+def load_quad_patterns() -> dict:
+    data = resources.files("stb_hydra").joinpath("data/quad_patterns.json").read_text()
+    return json.loads(data)
+
+
+class StbLighting(LightingMethod):
+    name = "stb"
+
+    def __init__(self, engine, **options) -> None:
+        unknown = set(options) - set(DEFAULTS)
+        if unknown:
+            raise ValueError(f"unknown stb option(s): {', '.join(sorted(unknown))}")
+        o = {**DEFAULTS, **options}
+        if o["K"] not in SLOT_BLOCKS:
+            raise ValueError(f"stb K must be one of {sorted(SLOT_BLOCKS)}, got {o['K']}")
+        if not 1 <= int(o["N"]) <= limits.SMALL_TILE_SAMPLES_MAX:
+            raise ValueError(f"stb N must be 1..{limits.SMALL_TILE_SAMPLES_MAX}, got {o['N']}")
+        bt = int(o["big_tile"])
+        if bt not in (32, 64, 128, 256):
+            raise ValueError(f"stb big_tile must be 32, 64, 128 or 256 px, got {bt}")
+        st = int(o["small_tile"])
+        if o["interleave"] and st != 16:
+            raise ValueError("stb interleaving needs 16 px small tiles (32 px footprints)")
+        if st not in (4, 8, 16, 32) or st > bt:
+            raise ValueError(f"stb small_tile must be 4..32 px and <= big_tile, got {st}")
+        if o["target"] not in TARGET_MODES:
+            raise ValueError(f"stb target must be one of {', '.join(TARGET_MODES)}")
+        cap = o["weight_cap"]
+        o["weight_cap"] = 0.0 if cap is None or cap is False or cap <= 0 else float(cap)
+        super().__init__(engine, **o)
+        self.o = o
+        self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
+        self.pattern_offset = (0, 0)
+
+    # -- resources --
+    def _lut_textures(self, ctx: moderngl.Context):
+        if self._luts is None:
+            pat = load_quad_patterns()
+            tile = np.array(pat["tile_of_quad"], dtype=np.int32)
+            slot = np.array(pat["slot_of_quad"], dtype=np.int32)
+            inv = (tile | (slot << 4)).astype(np.int32)  # row = qy, column = qx
+            fwd = np.array(pat["quad_of_slot"], dtype=np.int32)  # (4, 64, 2)
+            fwd_packed = (fwd[..., 0] | (fwd[..., 1] << 8)).astype(np.int32)  # row = tile
+            t_inv = ctx.texture((16, 16), 1, inv.tobytes(), dtype="i4")
+            t_fwd = ctx.texture((64, 4), 1, fwd_packed.tobytes(), dtype="i4")
+            for t in (t_inv, t_fwd):
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._luts = (t_inv, t_fwd)
+        return self._luts
+
+    def grid(self, width: int, height: int) -> dict[str, tuple[int, int]]:
+        """Texture sizes of this frame's STB buffers."""
+        o = self.o
+        bt = int(o["big_tile"])
+        bw, bh = SLOT_BLOCKS[int(o["K"])]
+        big = (math.ceil(width / bt), math.ceil(height / bt))
+        if o["interleave"]:
+            fx, fy = math.ceil((width + 32) / 32), math.ceil((height + 32) / 32)
+            small = (2 * fx, 2 * fy)
+            qs = 8
+        else:
+            s = int(o["small_tile"])
+            small = (math.ceil((width + s) / s), math.ceil((height + s) / s))
+            qs = s // 2
+        return {
+            "big_tiles": big,
+            "bigtile": (big[0] * bw, big[1] * bh),
+            "smalltile": small,
+            "terms": (small[0] * qs, small[1] * qs),
+        }
+
+    def prepare(self, frame) -> None:
+        o = self.o
+        hiz = self.engine.task("hiz")
+        hiz.levels = max(hiz.levels, int(math.log2(int(o["big_tile"]))))
+        rng = np.random.default_rng(frame.seed)
+        if o["interleave"]:
+            self.pattern_offset = (2 * int(rng.integers(0, 16)), 2 * int(rng.integers(0, 16)))
+        else:
+            half = int(o["small_tile"]) // 2
+            self.pattern_offset = (2 * int(rng.integers(0, half)), 2 * int(rng.integers(0, half)))
+
+    def _common_uniforms(self, frame, prog) -> None:
+        o = self.o
+        set_uniform(prog, "u_block", SLOT_BLOCKS[int(o["K"])])
+        set_uniform(prog, "u_big_px", int(o["big_tile"]))
+        set_uniform(prog, "u_pattern_offset", self.pattern_offset)
+        set_uniform(prog, "u_interleave", 1 if o["interleave"] else 0)
+        set_uniform(prog, "u_small_px", int(o["small_tile"]))
+        set_uniform(prog, "u_weight_cap", float(o["weight_cap"]))
+
+    def _bind(self, frame, prog, unit: int, name: str, tex) -> int:
+        if name in prog:
+            tex.use(unit)
+            prog[name].value = unit
+            return unit + 1
+        return unit
+
+    def defines(self, frame) -> dict[str, object]:
+        d = self.scene_defines(frame)
+        d["STB_N"] = int(self.o["N"])
+        return d
+
+    def execute(self, frame) -> None:
+        if frame.light_count == 0:
+            # No local lights: the sun-only path (compiled without STB passes).
+            prog = program(frame, "lighting_direct.frag", self.scene_defines(frame))
+            self.bind_common(frame, prog)
+            self.fullscreen_pass(frame, prog, "lighting")
+            return
+        ctx = frame.ctx
+        bufs = frame.buffers
+        w, h = bufs.size
+        g = self.grid(w, h)
+        defines = self.defines(frame)
+        lut_inv, lut_fwd = self._lut_textures(ctx)
+        level = int(math.log2(int(self.o["big_tile"])))
+        hiz = bufs.textures[f"hiz{level}"]
+
+        # 1. big tiles
+        big = bufs.texture("stb_bigtile", 1, "u4", size=g["bigtile"])
+        prog = program(frame, "stb_bigtile.frag", defines)
+        self._common_uniforms(frame, prog)
+        set_uniform(prog, "u_target_mode", TARGET_MODES[self.o["target"]])
+        self.bind_common(frame, prog)
+        self._bind(frame, prog, 12, "u_hiz", hiz)
+        self._pass(frame, prog, "stb_bigtile", g["bigtile"])
+
+        # 2. small tiles
+        small = bufs.texture("stb_smalltile", 4, "u4", size=g["smalltile"])
+        prog = program(frame, "stb_smalltile.frag", defines)
+        self._common_uniforms(frame, prog)
+        set_uniform(prog, "u_big_tiles", g["big_tiles"])
+        set_uniform(prog, "u_eps", float(self.o["eps"]))
+        set_uniform(prog, "u_pdf_floor", float(self.o["pdf_floor"]))
+        set_uniform(prog, "u_stochastic_bilinear", 1 if self.o["stochastic_bilinear"] else 0)
+        unit = self.bind_common(frame, prog)
+        unit = self._bind(frame, prog, unit, "u_bigtile", big)
+        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        self._pass(frame, prog, "stb_smalltile", g["smalltile"])
+
+        # 3. shadow terms
+        terms = bufs.texture("stb_terms", 4, "f1", size=g["terms"])
+        prog = program(frame, "stb_shadow.frag", defines)
+        self._common_uniforms(frame, prog)
+        unit = self.bind_common(frame, prog)
+        unit = self._bind(frame, prog, unit, "u_smalltile", small)
+        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        self._pass(frame, prog, "stb_terms", g["terms"])
+
+        # 4. lighting
+        prog = program(frame, "stb_lighting.frag", defines)
+        self._common_uniforms(frame, prog)
+        unit = self.bind_common(frame, prog)
+        unit = self._bind(frame, prog, unit, "u_smalltile", small)
+        unit = self._bind(frame, prog, unit, "u_terms", terms)
+        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        with frame.timings_scope("stb_lighting"):
+            self.fullscreen_pass(frame, prog, "lighting")
+        frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
+
+    def _pass(self, frame, prog, target: str, size) -> None:
+        ctx = frame.ctx
+        with frame.timings_scope(target):
+            fbo = frame.buffers.framebuffer("fb_" + target, [target])
+            fbo.use()
+            ctx.viewport = (0, 0, *size)
+            ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
+            self.engine.fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
+
+    def release(self) -> None:
+        if self._luts is not None:
+            for t in self._luts:
+                t.release()
+            self._luts = None

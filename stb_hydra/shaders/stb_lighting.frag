@@ -1,0 +1,44 @@
+// STB lighting: per pixel, its small tile's STB_N samples: BRDF x light colour
+// and shape (emission model, focus tint, IES scale) / d^2 x the quad's shadow
+// term x sample weight; plus sun, dome and emission. The cost does not depend
+// on the number of lights.
+#include "common/gbuffer.glsl"
+#include "common/sun.glsl"
+#include "common/lights.glsl"
+#include "common/tiles.glsl"
+
+uniform usampler2D u_smalltile;
+uniform sampler2D u_terms;
+
+layout(location = 0) out vec4 o_color;
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    Surface s;
+    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    if (!read_surface(px, s)) {
+        o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
+            ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+        return;
+    }
+    vec3 c = sun_and_ambient(s);
+    ivec2 st; int slot;
+    quad_owner(px, st, slot);
+    uvec4 smp = texelFetch(u_smalltile, st, 0);
+    vec4 terms = texelFetch(u_terms, term_texel(st, slot), 0);
+    for (int j = 0; j < STB_N; ++j) {
+        uint li = sample_index(smp[j]);
+        float W = sample_weight(smp[j]);
+        if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0 || terms[j] <= 0.0) continue;
+        Light L = lights[li];
+        vec3 Ldir; float dist;
+        float f = light_falloff(L, s.P, Ldir, dist);
+        if (f <= 0.0) continue;
+        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * terms[j];
+        vec3 d, sp;
+        brdf_eval(s, Ldir, d, sp);
+        c += (d * L.misc.z + sp * L.misc.w) * E * W;
+    }
+    c += emission;
+    o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
+}

@@ -1,0 +1,134 @@
+// STB small-tile resampling (one fragment per small tile): pick its big tile by
+// stochastic bilinear selection (centre jittered by up to one big tile), build
+// the refined target from 4 random quads of the tile (luminance-weighted
+// illuminance x Lambert + Blinn-Phong on the averaged material x (V cos+ + eps)),
+// and run SRS of STB_N streams over the big tile's K samples. Weight of the
+// stored sample: W' = sum(p_hat * W_bt) / p_hat(selected).
+#include "common/gbuffer.glsl"
+#include "common/rng.glsl"
+#include "common/lights.glsl"
+#include "common/shadow.glsl"
+#include "common/tiles.glsl"
+
+uniform usampler2D u_bigtile;    // r32ui reservoirs, u_block texels per big tile
+uniform ivec2 u_block;
+uniform int u_big_px;
+uniform ivec2 u_big_tiles;       // big-tile grid size
+uniform float u_eps;             // added to V cos+ (talk: keeps p_hat > 0 in shadow)
+uniform float u_weight_cap;      // W' <= cap * candidates * W_bt(sel); <= 0: no cap
+uniform int u_stochastic_bilinear;
+uniform float u_pdf_floor;       // p_hat >= floor x isotropic unshadowed estimate (keeps it > 0)
+
+layout(location = 0) out uvec4 o_samples;
+
+struct PdfPoint { vec3 P; vec3 N; vec3 V; };
+
+void main() {
+    ivec2 st = ivec2(gl_FragCoord.xy);
+    uint st_index = uint(st.y) * 4096u + uint(st.x);
+    Rng rng = rng_init(st_index + 0x20000000u, u_counts.y);
+    Rng off = rng_init(st_index + 0x30000000u, u_counts.y ^ 0x68e31da4u);
+    uvec4 result = uvec4(pack_sample(LIM_EMPTY_LIGHT_INDEX, 0.0));
+
+    // -- 4 random quads of this tile: surface points and the averaged material --
+    PdfPoint pts[4];
+    int npts = 0;
+    float kd = 0.0, ks = 0.0, rough = 0.0;
+    int nq = quads_per_tile();
+    // Up to 4 valid points: quads off-screen or on background are redrawn (edge
+    // tiles would otherwise end up with no samples and darken their pixels).
+    for (int i = 0; i < 16 && npts < 4; ++i) {
+        int slot = int(rng_u16(rng)) % nq;
+        ivec2 px = quad_pixel(st, slot) + ivec2(int(rng_u16(rng)) & 1, int(rng_u16(rng)) & 1);
+        if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, ivec2(u_resolution.xy)))) continue;
+        Surface s;
+        if (!read_surface(px, s)) continue;
+        pts[npts].P = s.P; pts[npts].N = s.N; pts[npts].V = s.V;
+        kd += luminance(s.diffuse); ks += luminance(s.f0); rough += s.roughness;
+        npts++;
+    }
+    // Deterministic fallback: any valid quad (tiles with only a few pixels on screen).
+    for (int slot = 0; slot < nq && npts == 0; ++slot) {
+        for (int k = 0; k < 4 && npts == 0; ++k) {
+            ivec2 px = quad_pixel(st, slot) + ivec2(k & 1, k >> 1);
+            if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, ivec2(u_resolution.xy)))) continue;
+            Surface s;
+            if (!read_surface(px, s)) continue;
+            pts[0].P = s.P; pts[0].N = s.N; pts[0].V = s.V;
+            kd = luminance(s.diffuse); ks = luminance(s.f0); rough = s.roughness;
+            npts = 1;
+        }
+    }
+    if (npts == 0) { o_samples = result; return; }
+    kd /= float(npts); ks /= float(npts); rough /= float(npts);
+    float a = max(rough * rough, 0.002);
+    float spec_n = max(2.0 / (a * a) - 2.0, 1.0);          // Blinn-Phong exponent from GGX alpha
+    float spec_norm = (spec_n + 2.0) / (2.0 * PI);
+
+    // -- stochastic bilinear big-tile selection --
+    vec2 c = small_tile_centre(st);
+    if (u_stochastic_bilinear == 1) {
+        c += (vec2(rng_float(rng), rng_float(rng)) - 0.5) * float(u_big_px);
+    }
+    ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
+
+    // -- SRS over the big tile's K samples into STB_N streams --
+    int K = u_block.x * u_block.y;
+    // Iteration `base` hands slots base..base+N-1 to the N streams, rotated by a
+    // random offset: each big-tile slot lands in exactly one stream.
+    float total[STB_N];
+    float sel_p[STB_N];
+    float sel_wbt[STB_N];
+    float count[STB_N];
+    uint sel[STB_N];
+    for (int j = 0; j < STB_N; ++j) {
+        total[j] = 0.0; sel_p[j] = 0.0; sel_wbt[j] = 0.0; count[j] = 0.0;
+        sel[j] = LIM_EMPTY_LIGHT_INDEX;
+    }
+    for (int base = 0; base < K; base += STB_N) {
+        int o = base == 0 ? 0 : int(rng_next(off) >> 16) % STB_N;
+        for (int j = 0; j < STB_N; ++j) {
+            int slot = base + (j + o) % STB_N;
+            if (slot >= K) continue;
+            ivec2 tx = bt * u_block + ivec2(slot % u_block.x, slot / u_block.x);
+            uint smp = texelFetch(u_bigtile, tx, 0).r;
+            uint li = sample_index(smp);
+            float wbt = sample_weight(smp);
+            if (li == LIM_EMPTY_LIGHT_INDEX || wbt <= 0.0) continue;
+            Light L = lights[li];
+            float ph = 0.0;
+            for (int k = 0; k < npts; ++k) {
+                vec3 Ldir; float dist;
+                float f = light_falloff(L, pts[k].P, Ldir, dist);
+                if (f <= 0.0) continue;
+                float Ev = luminance(L.intensity.rgb * light_shape(L, -Ldir)) * f;
+                float NoL = max(dot(pts[k].N, Ldir), 0.0);
+                vec3 H = normalize(pts[k].V + Ldir);
+                float NoH = max(dot(pts[k].N, H), 0.0);
+                float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
+                float V = luminance(local_shadow(L, pts[k].P, pts[k].N));
+                ph += Ev * fv * (V * NoL + u_eps);
+            }
+            ph /= float(npts);
+            // Floor: a light that lights some pixel of the tile but none of the 4
+            // sampled points must stay selectable (unbiasedness).
+            vec3 dd = L.pos_range.xyz - pts[0].P;
+            ph += u_pdf_floor * max(L.intensity.w, 0.0) / (4.0 * PI * max(dot(dd, dd), 1e-6))
+                  * (kd / PI + ks);
+            float w = ph * wbt;
+            count[j] += 1.0;
+            total[j] += w;
+            if (w > 0.0 && rng_float(rng) * total[j] <= w) {
+                sel[j] = li;
+                sel_p[j] = ph;
+                sel_wbt[j] = wbt;
+            }
+        }
+    }
+    for (int j = 0; j < STB_N; ++j) {
+        float W = sel_p[j] > 0.0 ? total[j] / sel_p[j] : 0.0;
+        if (u_weight_cap > 0.0) W = min(W, u_weight_cap * count[j] * sel_wbt[j]);
+        result[j] = pack_sample(sel[j], W);
+    }
+    o_samples = result;
+}
