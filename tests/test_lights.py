@@ -49,7 +49,9 @@ def test_exposure_doubles():
 
 def test_normalize_divides_by_area():
     r = 0.25
-    on, _ = light(f"float inputs:intensity = 100\nfloat inputs:radius = {r}\nbool inputs:normalize = 1")
+    on, _ = light(
+        f"float inputs:intensity = 100\nfloat inputs:radius = {r}\nbool inputs:normalize = 1"
+    )
     # L / (4 pi r^2) * pi r^2 = L / 4 whatever the radius
     np.testing.assert_allclose(on.intensity, 25.0, rtol=1e-6)
     disk, _ = light(
@@ -94,7 +96,7 @@ def test_meters_per_unit_scales_radius():
 def test_transform_scale_scales_radius_and_shape():
     lp, _ = light(
         "float inputs:intensity = 100\nfloat inputs:radius = 0.1\n"
-        "double3 xformOp:scale = (2, 2, 2)\nuniform token[] xformOpOrder = [\"xformOp:scale\"]"
+        'double3 xformOp:scale = (2, 2, 2)\nuniform token[] xformOpOrder = ["xformOp:scale"]'
     )
     assert lp.radius == pytest.approx(0.2)
 
@@ -111,7 +113,9 @@ def test_distant_light_illuminance():
 
 
 def test_dome_light_uniform_radiance():
-    lp, _ = light("float inputs:intensity = 0.3\ncolor3f inputs:color = (1, 0.5, 0.25)", "DomeLight")
+    lp, _ = light(
+        "float inputs:intensity = 0.3\ncolor3f inputs:color = (1, 0.5, 0.25)", "DomeLight"
+    )
     np.testing.assert_allclose(lp.intensity, [0.3, 0.15, 0.075], rtol=1e-6)
 
 
@@ -168,7 +172,7 @@ def test_legacy_unnamespaced_attributes_are_read_with_a_warning():
 
 
 def test_invisible_light_is_off():
-    lp, _ = light("float inputs:intensity = 1\ntoken visibility = \"invisible\"")
+    lp, _ = light('float inputs:intensity = 1\ntoken visibility = "invisible"')
     assert lp.valid and not lp.enabled
 
 

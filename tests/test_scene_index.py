@@ -200,7 +200,7 @@ def Xform "World"
 
 def test_instance_proxies_and_point_instancer_expansion(tmp_path):
     stage, _lamp = _instanced_stage(tmp_path)
-    si, ri = _index(stage)
+    _si, ri = _index(stage)
     lights = ri.delegate.lights
     assert set(lights) == {
         "/World/A/Bulb",

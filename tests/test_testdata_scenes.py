@@ -59,7 +59,10 @@ EXPECTED = [
         "usd-wg/test_assets/NormalsTextureBiasAndScale/NormalsTextureBiasAndScale.usda",
         {"distantLight": 4},
     ),
-    ("usd-wg/test_assets/RelationshipEncapsulationTests/utils/Environment.usda", {"sphereLight": 3}),
+    (
+        "usd-wg/test_assets/RelationshipEncapsulationTests/utils/Environment.usda",
+        {"sphereLight": 3},
+    ),
 ]
 
 
@@ -76,7 +79,8 @@ def test_scene_lights_match_manifest(testdata, rel, expected):
 def test_instanced_torches_are_found_through_instance_proxies(testdata):
     rep = inspect_stage(
         open_stage(
-            testdata / "usd/openusd/usd/usdLux/testenv/testUsdLuxLightListAPI/root_with_instances.usda"
+            testdata
+            / "usd/openusd/usd/usdLux/testenv/testUsdLuxLightListAPI/root_with_instances.usda"
         )
     )
     paths = {lr["path"] for lr in rep["lights"]}

@@ -98,8 +98,6 @@ def anneal(seed: int, sigma: float, iters: int) -> np.ndarray:
 
 def build(seed: int = 1, sigma: float = 4.0, iters: int = 200_000) -> dict:
     tiles = anneal(seed, sigma, iters)
-    yy, xx = np.mgrid[0:Q, 0:Q]
-    q = np.stack([xx, yy], axis=-1).astype(float)
     slot = np.zeros((Q, Q), dtype=np.int64)
     fwd = np.zeros((TILES, PER_TILE, 2), dtype=np.int64)
     for t in range(TILES):
@@ -129,7 +127,9 @@ def main() -> None:
     ap.add_argument("--iters", type=int, default=200_000)
     ap.add_argument(
         "--out",
-        default=str(Path(__file__).resolve().parents[1] / "stb_hydra" / "data" / "quad_patterns.json"),
+        default=str(
+            Path(__file__).resolve().parents[1] / "stb_hydra" / "data" / "quad_patterns.json"
+        ),
     )
     a = ap.parse_args()
     data = build(a.seed, a.sigma, a.iters)

@@ -25,7 +25,11 @@ void main() {
     ivec2 st; int slot;
     quad_owner(px, st, slot);
     uvec4 smp = texelFetch(u_smalltile, st, 0);
+#ifdef STB_PIXEL_TERMS
+    vec4 terms = texelFetch(u_terms, px, 0);
+#else
     vec4 terms = texelFetch(u_terms, term_texel(st, slot), 0);
+#endif
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float W = sample_weight(smp[j]);

@@ -16,19 +16,33 @@ layout(location = 0) out vec4 o_terms;
 
 void main() {
     ivec2 tx = ivec2(gl_FragCoord.xy);
+    vec4 terms = vec4(0.0);
+    Surface surf;
+    bool found = false;
+#ifdef STB_PIXEL_TERMS
+    // Full-resolution terms (the talk's "full-res shadows at additional cost"):
+    // one texel per pixel, evaluated at that pixel.
+    ivec2 st; int slot;
+    quad_owner(tx, st, slot);
+    found = read_surface(tx, surf);
+#else
     int s = quads_per_side();
     ivec2 st = tx / s;
     ivec2 q = tx - st * s;
     int slot = q.y * s + q.x;
-    vec4 terms = vec4(0.0);
     ivec2 px = quad_pixel(st, slot);
-    Surface surf;
-    bool found = false;
-    for (int k = 0; k < 4 && !found; ++k) {
+    // The quad's term is evaluated at one of its 4 pixels, chosen at random each
+    // frame: accumulated frames see the quad's average (a 2x2 box filter), not a
+    // fixed corner.
+    Rng pick = rng_init(uint(tx.y) * 8192u + uint(tx.x) + 0x50000000u, u_counts.y);
+    int first = int(rng_u16(pick)) & 3;
+    for (int kk = 0; kk < 4 && !found; ++kk) {
+        int k = (first + kk) & 3;
         ivec2 p = px + ivec2(k & 1, k >> 1);
         if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, ivec2(u_resolution.xy)))) continue;
         found = read_surface(p, surf);
     }
+#endif
     if (found) {
         uvec4 smp = texelFetch(u_smalltile, st, 0);
         Rng rng = rng_init(uint(tx.y) * 8192u + uint(tx.x) + 0x40000000u, u_counts.y);

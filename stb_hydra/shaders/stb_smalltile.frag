@@ -17,7 +17,7 @@ uniform ivec2 u_big_tiles;       // big-tile grid size
 uniform float u_eps;             // added to V cos+ (talk: keeps p_hat > 0 in shadow)
 uniform float u_weight_cap;      // W' <= cap * candidates * W_bt(sel); <= 0: no cap
 uniform int u_stochastic_bilinear;
-uniform float u_pdf_floor;       // p_hat >= floor x isotropic unshadowed estimate (keeps it > 0)
+uniform float u_pdf_floor;       // defensive mixture: p_hat += floor x mean p_hat of the K candidates
 
 layout(location = 0) out uvec4 o_samples;
 
@@ -74,6 +74,47 @@ void main() {
 
     // -- SRS over the big tile's K samples into STB_N streams --
     int K = u_block.x * u_block.y;
+    // Targets of all K candidates first, so the defensive mixture can use their mean.
+    float ph_all[64];
+    float wbt_all[64];
+    uint li_all[64];
+    float ph_sum = 0.0;
+    float ph_n = 0.0;
+    for (int slot = 0; slot < K; ++slot) {
+        ivec2 tx = bt * u_block + ivec2(slot % u_block.x, slot / u_block.x);
+        uint smp = texelFetch(u_bigtile, tx, 0).r;
+        uint li = sample_index(smp);
+        float wbt = sample_weight(smp);
+        li_all[slot] = li;
+        wbt_all[slot] = wbt;
+        ph_all[slot] = 0.0;
+        if (li == LIM_EMPTY_LIGHT_INDEX || wbt <= 0.0) continue;
+        Light L = lights[li];
+        float ph = 0.0;
+        for (int k = 0; k < npts; ++k) {
+            vec3 Ldir; float dist;
+            float f = light_falloff(L, pts[k].P, Ldir, dist);
+            if (f <= 0.0) continue;
+            float Ev = luminance(L.intensity.rgb * light_shape(L, -Ldir)) * f;
+            float NoL = max(dot(pts[k].N, Ldir), 0.0);
+            vec3 H = normalize(pts[k].V + Ldir);
+            float NoH = max(dot(pts[k].N, H), 0.0);
+            float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
+            float V = luminance(local_shadow(L, pts[k].P, pts[k].N));
+            ph += Ev * fv * (V * NoL + u_eps);
+        }
+        ph /= float(npts);
+        ph_all[slot] = ph;
+        ph_sum += ph;
+        ph_n += 1.0;
+    }
+    // Defensive mixture: p_hat' = p_hat + floor x mean(p_hat). A light that lights
+    // some pixel of the tile but none of the 4 sampled points (outside a cone,
+    // beyond its range there...) stays selectable with a bounded weight: the
+    // estimate stays unbiased (the talk accepts this bias) and its tail stays light.
+    float floor_ph = ph_n > 0.0 ? u_pdf_floor * ph_sum / ph_n : 0.0;
+    if (floor_ph <= 0.0) floor_ph = 1.0;  // nothing lit at the sampled points: uniform
+
     // Iteration `base` hands slots base..base+N-1 to the N streams, rotated by a
     // random offset: each big-tile slot lands in exactly one stream.
     float total[STB_N];
@@ -90,31 +131,10 @@ void main() {
         for (int j = 0; j < STB_N; ++j) {
             int slot = base + (j + o) % STB_N;
             if (slot >= K) continue;
-            ivec2 tx = bt * u_block + ivec2(slot % u_block.x, slot / u_block.x);
-            uint smp = texelFetch(u_bigtile, tx, 0).r;
-            uint li = sample_index(smp);
-            float wbt = sample_weight(smp);
+            uint li = li_all[slot];
+            float wbt = wbt_all[slot];
             if (li == LIM_EMPTY_LIGHT_INDEX || wbt <= 0.0) continue;
-            Light L = lights[li];
-            float ph = 0.0;
-            for (int k = 0; k < npts; ++k) {
-                vec3 Ldir; float dist;
-                float f = light_falloff(L, pts[k].P, Ldir, dist);
-                if (f <= 0.0) continue;
-                float Ev = luminance(L.intensity.rgb * light_shape(L, -Ldir)) * f;
-                float NoL = max(dot(pts[k].N, Ldir), 0.0);
-                vec3 H = normalize(pts[k].V + Ldir);
-                float NoH = max(dot(pts[k].N, H), 0.0);
-                float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
-                float V = luminance(local_shadow(L, pts[k].P, pts[k].N));
-                ph += Ev * fv * (V * NoL + u_eps);
-            }
-            ph /= float(npts);
-            // Floor: a light that lights some pixel of the tile but none of the 4
-            // sampled points must stay selectable (unbiasedness).
-            vec3 dd = L.pos_range.xyz - pts[0].P;
-            ph += u_pdf_floor * max(L.intensity.w, 0.0) / (4.0 * PI * max(dot(dd, dd), 1e-6))
-                  * (kd / PI + ks);
+            float ph = ph_all[slot] + floor_ph;
             float w = ph * wbt;
             count[j] += 1.0;
             total[j] += w;

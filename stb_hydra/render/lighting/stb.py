@@ -16,7 +16,18 @@ Options (``method_options`` / CLI): ``K`` (4..64), ``N`` (1..4), ``big_tile``
 (px, power of two 32..256), ``small_tile`` (16 with interleaving; any even
 power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
 ``interleave``, ``stochastic_bilinear``, ``target`` ("segment" | "uniform"),
-``pdf_floor``.
+``pdf_floor`` (defensive mixture weight of the small-tile target, see below),
+``shadow_res`` ("quad": one term per 2x2 quad, the talk's; "pixel": full
+resolution, exact at shadow/cone edges at ~4x the shadow-pass cost).
+
+Where we differ from the talk (see docs/STB_NOTES.md): the small-tile target is
+a defensive mixture ``p_hat + pdf_floor x mean(p_hat over the K candidates)``,
+so a light that lights some pixel of a tile but none of its 4 sampled points
+stays selectable with a bounded weight (unbiased; the talk accepts this bias);
+small tiles redraw sample points that fall off screen or on background; empty big tiles are filled
+with the full view ray as segment (stochastic bilinear selection uses them);
+the 8-bit terms use stochastic rounding; samples pack a 17-bit index and a
+15-bit log2 weight instead of fp16.
 """
 
 from __future__ import annotations
@@ -48,7 +59,8 @@ DEFAULTS = {
     "interleave": True,
     "stochastic_bilinear": True,
     "target": "segment",
-    "pdf_floor": 1e-3,
+    "pdf_floor": 0.25,
+    "shadow_res": "quad",
 }
 
 
@@ -77,6 +89,8 @@ class StbLighting(LightingMethod):
             raise ValueError("stb interleaving needs 16 px small tiles (32 px footprints)")
         if st not in (4, 8, 16, 32) or st > bt:
             raise ValueError(f"stb small_tile must be 4..32 px and <= big_tile, got {st}")
+        if o["shadow_res"] not in ("quad", "pixel"):
+            raise ValueError("stb shadow_res must be 'quad' or 'pixel'")
         if o["target"] not in TARGET_MODES:
             raise ValueError(f"stb target must be one of {', '.join(TARGET_MODES)}")
         cap = o["weight_cap"]
@@ -153,6 +167,8 @@ class StbLighting(LightingMethod):
     def defines(self, frame) -> dict[str, object]:
         d = self.scene_defines(frame)
         d["STB_N"] = int(self.o["N"])
+        if self.o["shadow_res"] == "pixel":
+            d["STB_PIXEL_TERMS"] = True
         return d
 
     def execute(self, frame) -> None:
@@ -195,14 +211,15 @@ class StbLighting(LightingMethod):
         self._pass(frame, prog, "stb_smalltile", g["smalltile"])
 
         # 3. shadow terms
-        terms = bufs.texture("stb_terms", 4, "f1", size=g["terms"])
+        tsize = (w, h) if self.o["shadow_res"] == "pixel" else g["terms"]
+        terms = bufs.texture("stb_terms", 4, "f1", size=tsize)
         prog = program(frame, "stb_shadow.frag", defines)
         self._common_uniforms(frame, prog)
         unit = self.bind_common(frame, prog)
         unit = self._bind(frame, prog, unit, "u_smalltile", small)
         unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
         self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
-        self._pass(frame, prog, "stb_terms", g["terms"])
+        self._pass(frame, prog, "stb_terms", tsize)
 
         # 4. lighting
         prog = program(frame, "stb_lighting.frag", defines)
@@ -230,3 +247,38 @@ class StbLighting(LightingMethod):
             for t in self._luts:
                 t.release()
             self._luts = None
+
+
+def decode_samples(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unpack 32-bit STB samples (``common/packing.glsl``) -> (light index, weight)."""
+    raw = np.asarray(raw, dtype=np.uint32)
+    wbits = 32 - limits.SAMPLE_INDEX_BITS
+    idx = raw >> np.uint32(wbits)
+    code = (raw & np.uint32((1 << wbits) - 1)).astype(np.float64)
+    w = np.where(
+        code > 0,
+        np.exp2(code / limits.SAMPLE_WEIGHT_STEPS_PER_OCTAVE + limits.SAMPLE_WEIGHT_LOG2_MIN),
+        0.0,
+    )
+    return idx.astype(np.int64), w
+
+
+def encode_samples(index: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """CPU twin of ``pack_sample`` (tests and tools)."""
+    wbits = 32 - limits.SAMPLE_INDEX_BITS
+    w = np.asarray(weight, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        code = np.where(
+            w > 0,
+            np.clip(
+                np.floor(
+                    (np.log2(np.maximum(w, 1e-300)) - limits.SAMPLE_WEIGHT_LOG2_MIN)
+                    * limits.SAMPLE_WEIGHT_STEPS_PER_OCTAVE
+                    + 0.5
+                ),
+                1,
+                (1 << wbits) - 1,
+            ),
+            0,
+        )
+    return (np.asarray(index, dtype=np.uint64) << wbits | code.astype(np.uint64)).astype(np.uint32)
