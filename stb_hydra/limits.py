@@ -162,3 +162,58 @@ SHADOW_STATS_WINDOW_FRAMES = 600
 PDF_EPSILON = 1.0e-20
 
 TWO_PI = 2.0 * math.pi
+
+# --- Validation -------------------------------------------------------------------------
+# Thresholds of the `stb validate` rules (stb_hydra/validate, docs/VALIDATE.md).
+
+#: Plausible luminous flux of one local light (lm). Below 1 lm (1/12 of a candle) a light
+#: is invisible next to any lit surface yet still takes an STB slot; above 200 klm (a 2 kW
+#: stadium floodlight) a prefab light is almost surely a units slip (cm radius read as m
+#: gives 10^4 x the flux, intensity authored in cd or W instead of nits).
+VALIDATE_LIGHT_FLUX_RANGE_LM = (1.0, 200_000.0)
+#: Most total flux of one prefab (lm): five floodlight-class lights. A whole lit street
+#: block is ~10^5 lm; 10^6 lm in one prefab is a scale or unit error, not a design.
+VALIDATE_PREFAB_FLUX_MAX_LM = 1_000_000.0
+
+#: Shadowed local lights per prefab before a warning: 8 maps of 512^2 fill the default
+#: per-frame update budget (SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT = 2 Mtexel), so more
+#: cannot all be refreshed in one frame even at a modest size.
+VALIDATE_SHADOWED_LIGHTS_PER_PREFAB_MAX = 8
+#: Dynamic-shadow opt-ins per prefab before a warning: dynamic maps are re-rendered
+#: round-robin every frame; two per prefab already take most of a frame's budget
+#: when a handful of such prefabs are on screen.
+VALIDATE_DYNAMIC_SHADOWS_PER_PREFAB_MAX = 2
+#: Reference view for the shadow-atlas estimate: the prefab seen from 20 m (mid-ground)
+#: in a 1080-px-high, 60-degree vertical field of view (a typical game camera).
+VALIDATE_SHADOW_REFERENCE_DISTANCE_M = 20.0
+VALIDATE_SHADOW_REFERENCE_HEIGHT_PX = 1080
+VALIDATE_SHADOW_REFERENCE_FOV_DEG = 60.0
+#: Largest estimated atlas share of one prefab at the reference view: a quarter of the
+#: default atlas (4 maps at SHADOW_MAP_MAX_SIZE), so four such prefabs fill it.
+VALIDATE_PREFAB_ATLAS_FRACTION_MAX = 0.25
+
+#: Lights whose influence spheres may overlap at one surface point before STB noise is
+#: likely: a big tile holds K = 16 reservoir slots; beyond that each slot resamples
+#: several lights and the variance grows with the count (STB_SPEC "Big-tile sampling").
+VALIDATE_STB_OVERLAP_MAX = BIG_TILE_SLOTS_DEFAULT
+#: Surface points sampled per asset (area-weighted over its meshes) for the overlap
+#: count: with 4096 points a region covering 0.1 % of the area is missed with
+#: probability (1 - 0.001)^4096 ~ 1.7 %.
+VALIDATE_OVERLAP_SAMPLES = 4096
+
+#: |ies:angleScale| above this is a value typed in degrees, not a scale factor: 10 maps
+#: the first 18 degrees of the profile onto the whole sphere; no real fixture does that.
+VALIDATE_IES_ANGLE_SCALE_MAX = 10.0
+#: A negative angleScale rescales the profile about the zenith and can turn a downlight
+#: sideways or up: reported when the flux-weighted mean downward cosine of the remapped
+#: profile falls below this fraction of the original's (the beam tilts past ~60 deg).
+VALIDATE_IES_DOWNLIGHT_KEEP_MIN = 0.5
+#: Share of a profile's flux below the horizon that makes it a downlight.
+VALIDATE_IES_DOWNLIGHT_SHARE = 0.6
+
+#: metersPerUnit values whose ratio is within this relative tolerance are "the same"
+#: (also used to accept a compensating xform scale on a referencing prim).
+VALIDATE_UNITS_RTOL = 0.01
+
+#: Wall-clock limit (s) for one asset in a worker before it is killed and reported.
+VALIDATE_ASSET_TIMEOUT_S = 300.0

@@ -1,0 +1,142 @@
+"""Shadow-map resolution policy: projected size -> power-of-two side, with hysteresis.
+
+Vectorised over lights (numpy arrays in, arrays out; no per-light Python loop).
+
+Heuristic: the light's influence sphere (radius ``range_m``) seen from the camera at
+``distance_m`` covers a diameter of ``viewport_height_px * r / (d * tan(fov_y / 2))``
+pixels (small-angle projection; d is floored at r, i.e. a camera inside the sphere
+sees it fill the screen). The continuous target side is that diameter times
+``SHADOW_TEXELS_PER_PIXEL`` times ``sqrt(flux / SHADOW_REFERENCE_FLUX_LM)`` (clamped
+to ``SHADOW_FLUX_SCALE_RANGE``), in texels.
+
+Sizes: nearest power of two in log2 (``2^floor(log2 t + 0.5)``) clamped to
+[min_size, max_size]; a light keeps its current size while log2(target) stays within
+``0.5 + hysteresis`` octaves of log2(current).
+
+Out-of-view lights (influence sphere outside the frustum, caller's test): keep their
+current size (no re-render churn when the camera turns; a light with no map yet gets
+``min_size``) and get their priority scaled by ``SHADOW_OUT_OF_VIEW_PRIORITY_SCALE``,
+so the allocator downgrades them first and the scheduler refreshes them last.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stb_hydra.limits import (
+    SHADOW_FLUX_SCALE_RANGE,
+    SHADOW_MAP_MAX_SIZE,
+    SHADOW_MAP_MIN_SIZE,
+    SHADOW_OUT_OF_VIEW_PRIORITY_SCALE,
+    SHADOW_REFERENCE_FLUX_LM,
+    SHADOW_RES_HYSTERESIS_OCTAVES,
+    SHADOW_TEXELS_PER_PIXEL,
+)
+
+__all__ = [
+    "apply_hysteresis",
+    "choose_resolutions",
+    "light_priorities",
+    "sizes_from_target",
+    "target_texels",
+]
+
+#: Floor (texels) of the continuous target so log2 stays finite.
+_TARGET_FLOOR = 1.0e-3
+
+
+def target_texels(
+    distance_m: np.ndarray,
+    flux_lm: np.ndarray,
+    range_m: np.ndarray,
+    viewport_height_px: float,
+    fov_y_rad: float,
+    texels_per_pixel: float = SHADOW_TEXELS_PER_PIXEL,
+) -> np.ndarray:
+    """Continuous (unclamped) map side each light deserves, in texels (float64).
+    ``texels_per_pixel`` is the global density knob (e.g. lower it under atlas pressure)."""
+    d = np.asarray(distance_m, dtype=np.float64)
+    r = np.maximum(np.asarray(range_m, dtype=np.float64), 0.0)
+    flux = np.maximum(np.asarray(flux_lm, dtype=np.float64), 0.0)
+    d_eff = np.maximum(d, np.maximum(r, 1.0e-6))
+    diameter_px = viewport_height_px * r / (d_eff * np.tan(0.5 * fov_y_rad))
+    lo, hi = SHADOW_FLUX_SCALE_RANGE
+    flux_scale = np.clip(np.sqrt(flux / SHADOW_REFERENCE_FLUX_LM), lo, hi)
+    return np.maximum(diameter_px * texels_per_pixel * flux_scale, _TARGET_FLOOR)
+
+
+def apply_hysteresis(
+    target: np.ndarray,
+    current_sizes: np.ndarray,
+    min_size: int = SHADOW_MAP_MIN_SIZE,
+    max_size: int = SHADOW_MAP_MAX_SIZE,
+    hysteresis_octaves: float = SHADOW_RES_HYSTERESIS_OCTAVES,
+) -> np.ndarray:
+    """Power-of-two sides (int64) for continuous ``target`` texels.
+
+    ``current_sizes`` 0 = no map yet. A current size in [min, max] is kept while
+    |log2(clamped target) - log2(current)| <= 0.5 + hysteresis_octaves.
+    """
+    t = np.clip(np.asarray(target, dtype=np.float64), min_size, max_size)
+    lt = np.log2(t)
+    lo_e, hi_e = int(np.log2(min_size)), int(np.log2(max_size))
+    nominal = np.left_shift(1, np.clip(np.floor(lt + 0.5), lo_e, hi_e).astype(np.int64))
+    cur = np.asarray(current_sizes, dtype=np.int64)
+    valid = (cur >= min_size) & (cur <= max_size) & ((cur & (cur - 1)) == 0)
+    lc = np.log2(np.where(valid, cur, 1).astype(np.float64))
+    keep = valid & (np.abs(lt - lc) <= 0.5 + hysteresis_octaves)
+    return np.where(keep, cur, nominal)
+
+
+def choose_resolutions(
+    distance_m: np.ndarray,
+    flux_lm: np.ndarray,
+    range_m: np.ndarray,
+    viewport_height_px: float,
+    fov_y_rad: float,
+    current_sizes: np.ndarray,
+    in_view: np.ndarray | None = None,
+    *,
+    min_size: int = SHADOW_MAP_MIN_SIZE,
+    max_size: int = SHADOW_MAP_MAX_SIZE,
+    hysteresis_octaves: float = SHADOW_RES_HYSTERESIS_OCTAVES,
+    texels_per_pixel: float = SHADOW_TEXELS_PER_PIXEL,
+) -> np.ndarray:
+    """Map side (texels, int64 power of two) per light; see module doc."""
+    target = target_texels(
+        distance_m, flux_lm, range_m, viewport_height_px, fov_y_rad, texels_per_pixel
+    )
+    return sizes_from_target(target, current_sizes, in_view, min_size, max_size, hysteresis_octaves)
+
+
+def sizes_from_target(
+    target: np.ndarray,
+    current_sizes: np.ndarray,
+    in_view: np.ndarray | None = None,
+    min_size: int = SHADOW_MAP_MIN_SIZE,
+    max_size: int = SHADOW_MAP_MAX_SIZE,
+    hysteresis_octaves: float = SHADOW_RES_HYSTERESIS_OCTAVES,
+) -> np.ndarray:
+    """``apply_hysteresis`` plus the out-of-view rule: hold the current size (a light
+    with no map yet, current 0, gets ``min_size``)."""
+    sizes = apply_hysteresis(target, current_sizes, min_size, max_size, hysteresis_octaves)
+    if in_view is None:
+        return sizes
+    cur = np.asarray(current_sizes, dtype=np.int64)
+    hold = np.where(cur > 0, np.clip(cur, min_size, max_size), min_size)
+    return np.where(np.asarray(in_view, dtype=bool), sizes, hold)
+
+
+def light_priorities(target: np.ndarray, in_view: np.ndarray | None = None) -> np.ndarray:
+    """Allocation / update priority per light: ``1 + log2(1 + target)`` (target = the
+    continuous side in texels, not clamped, so lights past the max size still order),
+    times ``SHADOW_OUT_OF_VIEW_PRIORITY_SCALE`` out of view.
+
+    The allocator only uses the order; the scheduler serves dynamic maps at a rate
+    proportional to priority, so the log keeps a light 1000x smaller on screen at
+    ~1/10 of the refresh rate of the biggest instead of 1/1000 (no practical starvation).
+    """
+    p = 1.0 + np.log2(1.0 + np.maximum(np.asarray(target, dtype=np.float64), 0.0))
+    if in_view is None:
+        return p
+    return np.where(np.asarray(in_view, dtype=bool), p, p * SHADOW_OUT_OF_VIEW_PRIORITY_SCALE)
