@@ -26,7 +26,7 @@ from ..scene.stage_scene_index import StageSceneIndex
 from .camera import ViewSetup, framing_camera, view_setup
 from .frame import FrameContext, RenderBuffers, RenderSettings, Timings, timed
 from .frame_data import FrameUniforms, SunSetup, pack_frame_block
-from .gl import get_context, shader_library
+from .gl import get_context, park, shader_library
 from .gl_delegate import GLRenderDelegate
 from .light_table import TYPE_CODES
 from .lighting import method_class
@@ -37,7 +37,7 @@ from .tasks.gbuffer import GBufferTask
 from .tasks.hiz import HiZTask
 from .tasks.light_cull import LightCullTask
 from .tasks.lighting import LightingTask
-from .tasks.shadow import SunShadowTask
+from .tasks.shadow import ShadowAtlasTask, SunShadowTask
 from .tasks.taa import AccumulateTask
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -84,6 +84,7 @@ class Engine:
         self.tasks = [
             LightCullTask(self),
             SunShadowTask(self),
+            ShadowAtlasTask(self, self.settings.shadow_atlas_size, self.settings.shadow_budget),
             GBufferTask(self),
             HiZTask(self),
             LightingTask(self, method),
@@ -96,6 +97,7 @@ class Engine:
         self._free_camera: prims.CameraPrim | None = None
         self.warnings: list[str] = []
         self._seen_warnings: set[str] = set()
+        self._in_sequence = False
         self._sync(None)  # first sync so bounds/cameras are known
         self._choose_camera()
         if not self.settings.height:
@@ -214,6 +216,8 @@ class Engine:
         """One frame through all four phases. ``seed`` selects the frame's random
         sequence (stochastic methods); default: the frame counter."""
         s = self.settings
+        if not self._in_sequence:
+            self.accumulate.reset()  # a lone frame: no running average with older frames
         self.timings.start_frame()
         self._sync(time)
         if self.is_empty():
@@ -239,6 +243,8 @@ class Engine:
             for t in self.tasks:
                 with timed(self.timings, "prepare." + t.name, None, False):
                     t.prepare(frame)
+        with timed(self.timings, "commit.lights", None, False):
+            frame.stats["light_upload"] = self.delegate.upload_fov_lights()
         prev = self._prev_view_proj if self._prev_view_proj is not None else view.view_proj
         big = (math.ceil(s.width / 128), math.ceil(s.height / 128))
         self.uniforms.update(
@@ -260,6 +266,7 @@ class Engine:
             with timed(self.timings, t.name, self.ctx, s.profile):
                 t.execute(frame)
         self._prev_view_proj = view.view_proj
+        park(self.ctx)
         self.frame_index += 1
         self.timings.end_frame()
         frame.stats["programs_compiled"] = shader_library(self.ctx).compiled
@@ -270,8 +277,12 @@ class Engine:
         n = max(1, int(accumulate or self.settings.accumulate))
         self.accumulate.reset()
         frame = None
-        for i in range(n):
-            frame = self.render_frame(time, final=i == n - 1)
+        self._in_sequence = True
+        try:
+            for i in range(n):
+                frame = self.render_frame(time, final=i == n - 1)
+        finally:
+            self._in_sequence = False
         return frame
 
     @property
@@ -282,6 +293,7 @@ class Engine:
         self.aov_output.requested = set(names) | {"color"}
 
     def release(self) -> None:
+        park(self.ctx)
         for t in self.tasks:
             t.release()
         for vao in self._fs_vaos.values():

@@ -23,6 +23,12 @@ class RenderSettings:
     seed: int = 0
     accumulate: int = 1
     sun_shadow_size: int = 2048
+    #: Local-light shadows from the atlas (False: every local light unshadowed).
+    shadows: bool = True
+    #: Shadow atlas side (texels) and per-frame capture budget (texels rendered);
+    #: None = limits.SHADOW_ATLAS_SIZE_DEFAULT / SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT.
+    shadow_atlas_size: int | None = None
+    shadow_budget: int | None = None
     #: Extra uniform ambient radiance (nits) added to the dome, e.g. for thumbnails.
     ambient: float = 0.0
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).

@@ -52,6 +52,21 @@ def use_context(ctx: moderngl.Context) -> None:
         _ctx = ctx
 
 
+_parking: dict[int, moderngl.Framebuffer] = {}
+
+
+def park(ctx: moderngl.Context) -> None:
+    """Bind a persistent 1x1 framebuffer. Call before releasing framebuffers:
+    moderngl restores the previously bound framebuffer after some operations
+    (e.g. ``Framebuffer.clear``), and re-binding a deleted one is a GL error."""
+    fb = _parking.get(id(ctx))
+    if fb is None:
+        tex = ctx.texture((1, 1), 4, dtype="f1")
+        fb = ctx.framebuffer(color_attachments=[tex])
+        _parking[id(ctx)] = fb
+    fb.use()
+
+
 def renderer_info(ctx: moderngl.Context) -> str:
     i = ctx.info
     return f"{i['GL_RENDERER']} | OpenGL {i['GL_VERSION']} | {i['GL_VENDOR']}"

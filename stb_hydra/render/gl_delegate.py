@@ -73,6 +73,8 @@ class DrawBatch:
     dynamic: bool
     models: np.ndarray  # (k, 4, 4) float32 this frame
     prev_models: np.ndarray  # (k, 4, 4) float32 previous frame
+    #: World AABB (render frame, metres) of every instance.
+    bounds: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
     instance_buffer: moderngl.Buffer | None = None
     vaos: dict[int, moderngl.VertexArray] = field(default_factory=dict)
 
@@ -94,10 +96,12 @@ class GLRenderDelegate(RenderDelegate):
         self.batches: list[DrawBatch] = []
         self._batch_prev: dict[tuple, np.ndarray] = {}
         self._batches_dirty = True
+        self._static_changed: set[str] = set()
         self.light_ssbo: moderngl.Buffer | None = None
         self.fov_rows = np.zeros(0, dtype=np.int64)
         self._fov_version = -1
         self._fov_uploaded_rows: np.ndarray | None = None
+        self._fov_uploaded_maps: np.ndarray | None = None
         self.ies_texture: moderngl.TextureArray | None = None
         self._ies_version = -1
         self.ies_layer_count = 0
@@ -105,11 +109,19 @@ class GLRenderDelegate(RenderDelegate):
         self.stats = {"geometry_uploads": 0, "light_uploads": 0, "instance_uploads": 0}
         #: Shadow-map index per FoV light (set by the shadow task), or None.
         self.fov_shadow_maps: np.ndarray | None = None
+        #: World bounds per mesh prim, and the bounds static geometry changed in
+        #: since the shadow task last looked (old and new): static shadow maps in
+        #: range of these must be re-captured.
+        self.mesh_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self.changed_static_bounds: list[tuple[np.ndarray, np.ndarray]] = []
         #: Features present among the FoV lights (selects shader variants).
         self.fov_flags: dict[str, bool] = {"cones": False, "ies": False, "shadows": False}
 
     # -- render prim hooks --
     def release_mesh(self, path: str) -> None:
+        b = self.mesh_bounds.pop(path, None)
+        if b is not None:
+            self.changed_static_bounds.append(b)
         for key, g in list(self.geometry.items()):
             if path in g.users:
                 g.users.discard(path)
@@ -131,6 +143,9 @@ class GLRenderDelegate(RenderDelegate):
                 self._upload_geometry(path, rp.mesh, done)
             if bits & _BATCH_BITS:
                 self._batches_dirty = True
+                if rp.mesh is not None and not rp.mesh.dynamic and path in self.mesh_bounds:
+                    self.changed_static_bounds.append(self.mesh_bounds[path])
+                self._static_changed.add(path)
         if any(m.pending_bits for m in self.materials.values()):
             self._batches_dirty = True
         if self._batches_dirty:
@@ -208,8 +223,10 @@ class GLRenderDelegate(RenderDelegate):
     def _rebuild_batches(self) -> None:
         groups: dict[tuple, list[np.ndarray]] = {}
         meta: dict[tuple, tuple[str, MaterialParams, bool]] = {}
+        gbounds: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
+        new_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         for path, rp in self.meshes.items():
             m = rp.mesh
             if m is None or not m.visible or len(m.indices) == 0:
@@ -222,21 +239,27 @@ class GLRenderDelegate(RenderDelegate):
             xf = m.world_transforms()
             groups.setdefault(k, []).append(xf)
             meta[k] = (key_g, mp, m.dynamic)
-            g = self.geometry[key_g]
-            blo, bhi = g.bounds
-            corners = np.array(
-                [
-                    [x, y, z, 1.0]
-                    for x in (blo[0], bhi[0])
-                    for y in (blo[1], bhi[1])
-                    for z in (blo[2], bhi[2])
-                ]
-            )
+            blo, bhi = self.geometry[key_g].bounds
+            corners = np.array(np.meshgrid(*zip(blo, bhi), indexing="ij")).reshape(3, -1).T
+            corners = np.c_[corners, np.ones(8)]
             wc = np.einsum("ci,kij->kcj", corners, xf)[..., :3].reshape(-1, 3)
             wc = wc[np.all(np.isfinite(wc), axis=1)]
             if len(wc):
-                lo = np.minimum(lo, wc.min(axis=0))
-                hi = np.maximum(hi, wc.max(axis=0))
+                mlo, mhi = wc.min(axis=0), wc.max(axis=0)
+                new_bounds[path] = (mlo, mhi)
+                lo = np.minimum(lo, mlo)
+                hi = np.maximum(hi, mhi)
+                g0 = gbounds.get(k)
+                gbounds[k] = (
+                    (mlo, mhi) if g0 is None else (np.minimum(g0[0], mlo), np.maximum(g0[1], mhi))
+                )
+        for path in self._static_changed:
+            b = new_bounds.get(path)
+            rp = self.meshes.get(path)
+            if b is not None and rp is not None and rp.mesh is not None and not rp.mesh.dynamic:
+                self.changed_static_bounds.append(b)
+        self._static_changed.clear()
+        self.mesh_bounds = new_bounds
         for b in self.batches:
             if b.instance_buffer is not None:
                 b.instance_buffer.release()
@@ -250,7 +273,7 @@ class GLRenderDelegate(RenderDelegate):
             if prev is None or prev.shape != models.shape:
                 prev = models
             gk, mp, dyn = meta[k]
-            b = DrawBatch(gk, mp, dyn, models, prev)
+            b = DrawBatch(gk, mp, dyn, models, prev, gbounds.get(k, (np.zeros(3), np.zeros(3))))
             self._upload_instances(b)
             new.append(b)
             prev_map[k] = models
@@ -298,28 +321,41 @@ class GLRenderDelegate(RenderDelegate):
         return vao
 
     # -- lights --
-    def update_fov_lights(self, planes: np.ndarray) -> bool:
-        """Cull against the frustum; upload the packed buffer if anything changed.
-        Returns True when an upload happened."""
+    def cull_fov(self, planes: np.ndarray) -> np.ndarray:
+        """Cull lights against the frustum; the FoV list for this frame."""
         rows = cull_lights(self.light_table, planes)
         t = self.light_table
         self.fov_flags = {
             "cones": bool(np.any(t.cone_cutoff[rows] < np.float32(3.14159))),
             "ies": bool(np.any(t.ies_layer[rows] >= 0)),
-            "shadows": bool(np.any(t.shadow_enable[rows])),
+            "shadows": False,
         }
+        self.fov_rows = rows
+        self.fov_shadow_maps = None
+        return rows
+
+    def upload_fov_lights(self) -> bool:
+        """Upload the packed FoV light buffer if the culled set, a culled light or
+        the shadow-map assignment changed. Returns True when it uploaded."""
+        rows = self.fov_rows
         version = int(self.light_table.version)
+        maps = self.fov_shadow_maps
+        self.fov_flags["shadows"] = maps is not None and bool(np.any(maps >= 0))
         same_rows = self._fov_uploaded_rows is not None and np.array_equal(
             rows, self._fov_uploaded_rows
         )
-        changed = not same_rows
-        if same_rows and version != self._fov_version and len(rows):
+        same_maps = (maps is None and self._fov_uploaded_maps is None) or (
+            maps is not None
+            and self._fov_uploaded_maps is not None
+            and np.array_equal(maps, self._fov_uploaded_maps)
+        )
+        changed = not (same_rows and same_maps)
+        if not changed and version != self._fov_version and len(rows):
             changed = bool(np.any(self.light_table.cols["version"][rows] > self._fov_version))
-        self.fov_rows = rows
         if not changed and self.light_ssbo is not None:
             self._fov_version = version
             return False
-        packed = pack_lights(self.light_table, rows, self.fov_shadow_maps)
+        packed = pack_lights(self.light_table, rows, maps)
         nbytes = max(packed.nbytes, LIGHT_STRIDE_BYTES)
         if self.light_ssbo is None or self.light_ssbo.size < nbytes:
             if self.light_ssbo is not None:
@@ -328,9 +364,15 @@ class GLRenderDelegate(RenderDelegate):
         if packed.nbytes:
             self.light_ssbo.write(packed.tobytes())
         self._fov_uploaded_rows = rows
+        self._fov_uploaded_maps = None if maps is None else maps.copy()
         self._fov_version = version
         self.stats["light_uploads"] += 1
         return True
+
+    def update_fov_lights(self, planes: np.ndarray) -> bool:
+        """Cull + upload in one step (tools and tests)."""
+        self.cull_fov(planes)
+        return self.upload_fov_lights()
 
     def _upload_ies(self) -> None:
         from ..scene.lights import _load_ies_cached

@@ -41,6 +41,8 @@ class LightingMethod:
                 defines["HAS_IES"] = True
             if d.fov_flags["cones"]:
                 defines["HAS_CONES"] = True
+            if d.fov_flags["shadows"]:
+                defines["HAS_SHADOWS"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:
@@ -59,6 +61,9 @@ class LightingMethod:
             d.ies_texture.use(unit)
             prog["u_ies"].value = unit
             unit += 1
+        atlas = self.engine.task("shadow_atlas")
+        if atlas is not None:
+            unit = atlas.bind(prog, unit)
         sun = self.engine.task("shadow")
         if "u_sun_shadow" in prog and sun is not None and sun.texture is not None:
             sun.texture.use(unit)

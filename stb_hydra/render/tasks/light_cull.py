@@ -1,5 +1,6 @@
-"""CPU light culling: influence spheres against the view frustum (vectorised),
-then the FoV light buffer upload (only when something changed)."""
+"""CPU light culling: influence spheres against the view frustum (vectorised).
+The FoV light buffer is uploaded in the commit phase (``GLRenderDelegate.
+upload_fov_lights``), after the shadow task assigned shadow maps."""
 
 from __future__ import annotations
 
@@ -11,7 +12,6 @@ class LightCullTask(Task):
 
     def prepare(self, frame) -> None:
         d = self.engine.delegate
-        uploaded = d.update_fov_lights(frame.view.frustum_planes())
+        d.cull_fov(frame.view.frustum_planes())
         frame.light_count = len(d.fov_rows)
         frame.stats["fov_lights"] = frame.light_count
-        frame.stats["light_upload"] = uploaded

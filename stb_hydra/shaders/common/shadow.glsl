@@ -1,12 +1,79 @@
-// Shadow terms of local lights from the shadow atlas. Until the atlas exists
-// every local light is unshadowed (the reference method's documented state).
+// Shadow terms of local lights from the 16-bit shadow atlas (shared by every
+// lighting method). Maps store (distance to the light + bias) / range, linear,
+// in [0, 1]; spot lights a perspective map, omni lights an octahedral one.
+// Lookups use the light transform the map was *captured* with (the record),
+// not the light's current one. 4-tap gather PCF (hardware-style bilinear
+// weights), optional stochastic PCF (one random sub-texel offset per lookup).
 #ifndef STB_SHADOW_GLSL
 #define STB_SHADOW_GLSL
 #include "common/lights.glsl"
+#include "common/octahedral.glsl"
 
-// Visibility in [0, 1] of light L from surface point P with normal N (1 = lit),
-// already mixed with the light's shadow colour: returns an RGB factor.
-vec3 local_shadow(Light L, vec3 P, vec3 N) {
-    return vec3(1.0);
+#ifdef HAS_SHADOWS
+struct ShadowMap {
+    mat4 view_proj;   // spot: captured world -> clip
+    vec4 pos_range;   // captured light position (m), range (m) = depth normalisation
+    vec4 atlas;       // interior origin x, y (texels), interior side (texels), type (0 spot, 1 omni)
+    vec4 params;      // x near (m), y texel angle (rad), z 1 / atlas size, w normal-bias scale
+};
+layout(std430, binding = 1) readonly buffer ShadowBuffer { ShadowMap shadow_maps[]; };
+uniform sampler2D u_shadow_atlas;   // r16 unorm
+
+// Returns the RGB transmission mix(shadow:color, 1, visibility).
+vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
+    int m = int(L.ies_shadow.z);
+    if (m < 0) return vec3(1.0);
+    ShadowMap S = shadow_maps[m];
+    vec3 to_l = S.pos_range.xyz - P;
+    float dist0 = length(to_l);
+    vec3 ldir = to_l / max(dist0, 1e-9);
+    float texel_world = S.params.y * dist0;
+    // Slope-scaled normal offset: at grazing incidence one texel spans tan(theta)
+    // texels of depth, so push the lookup further off the surface (clamped).
+    float c = clamp(abs(dot(N, ldir)), 0.05, 1.0);
+    float slope = clamp(sqrt(1.0 - c * c) / c, 1.0, 4.0);
+    vec3 Pb = P + N * (texel_world * S.params.w * min(slope, 2.0))
+            + ldir * (texel_world * (0.5 + 0.75 * slope));
+    vec3 d = Pb - S.pos_range.xyz;
+    float dist = length(d);
+    float range = S.pos_range.w;
+    float ref = dist / range;
+    if (ref >= 1.0) return vec3(1.0);
+    vec2 uv;
+    if (S.atlas.w < 0.5) {
+        vec4 c = S.view_proj * vec4(Pb, 1.0);
+        if (c.w <= 0.0) return vec3(1.0);
+        uv = c.xy / c.w * 0.5 + 0.5;
+        if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) return vec3(1.0);
+    } else {
+        uv = oct_dir_to_uv(d / max(dist, 1e-12));
+    }
+    // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
+    vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
+    vec2 base = floor(t);
+    vec2 f = t - base;
+    vec4 g = textureGather(u_shadow_atlas, (base + 1.0) * S.params.z, 0);
+    // gather order: (0,1) (1,1) (1,0) (0,0)
+    vec4 w = vec4((1.0 - f.x) * f.y, f.x * f.y, f.x * (1.0 - f.y), (1.0 - f.x) * (1.0 - f.y));
+    vec4 lit = vec4(greaterThanEqual(g, vec4(ref)));
+    float maxd = L.shadow_color.w;
+    if (maxd > 0.0) {
+        vec4 to_occ = vec4(dist) - g * range;
+        float fall = L.misc.x > 0.0 ? min(L.misc.x, maxd) : 0.0;
+        vec4 fade = fall > 0.0
+            ? pow(clamp((to_occ - (maxd - fall)) / fall, 0.0, 1.0), vec4(max(L.misc.y, 1e-3)))
+            : vec4(greaterThan(to_occ, vec4(maxd)));
+        lit = max(lit, fade);
+    }
+    float v = dot(lit, w);
+    return mix(L.shadow_color.rgb, vec3(1.0), v);
 }
+
+vec3 local_shadow(Light L, vec3 P, vec3 N) {
+    return local_shadow_jittered(L, P, N, vec2(0.0));
+}
+#else
+vec3 local_shadow(Light L, vec3 P, vec3 N) { return vec3(1.0); }
+vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) { return vec3(1.0); }
+#endif
 #endif
