@@ -8,7 +8,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.stb_installed
 OUT    ?= out
-DEMO_FLAGS ?= --lighting reference
+DEMO_FLAGS ?= --lighting stb --accumulate 16
 
 .PHONY: demo test lint bench clean sysdeps
 

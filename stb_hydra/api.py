@@ -33,14 +33,19 @@ def render(
     seed: int = 0,
     ambient: float = 0.0,
     alpha: bool = False,
-    **method_options,
+    **options,
 ) -> np.ndarray:
     """Render one image; returns (h, w, 3) (or (h, w, 4) with ``alpha``) float32.
 
     ``height`` defaults to the camera's aspect ratio; ``camera`` defaults to the
     stage's first camera, else a free camera framing the stage bounds;
-    ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails.
+    ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails. Other
+    keywords are ``RenderSettings`` fields (``shadows``, ``shadow_budget``...) or,
+    failing that, options of the lighting method (e.g. ``N=4`` for stb).
     """
+    fields = set(RenderSettings.__dataclass_fields__)
+    extra = {k: v for k, v in options.items() if k in fields}
+    method_options = {k: v for k, v in options.items() if k not in fields}
     settings = RenderSettings(
         width=width,
         height=height,
@@ -50,6 +55,7 @@ def render(
         accumulate=accumulate,
         ambient=ambient,
         method_options=method_options,
+        **extra,
     )
     eng = Engine(stage, settings, time=time)
     try:
