@@ -376,7 +376,7 @@ def _read_light_into(
     lp.specular = float(a.get("inputs:specular", 1.0))
 
     ok = True
-    if not _finite(intensity) or intensity < 0:
+    if not _finite(intensity) or float(intensity) < 0:
         _warn(lp, ctx, f"intensity {intensity} is not a finite non-negative number; light disabled")
         ok = False
     if not _finite(exposure) or abs(exposure) > limits.MAX_ABS_EXPOSURE:
@@ -523,16 +523,19 @@ def _read_light_into(
         ok = False
         ctx.warn_once("portal", f"light <{lp.path}>: PortalLight is not supported; ignored")
 
-    # -- shadows --
-    lp.shadow_enable = bool(a.get("inputs:shadow:enable", True))
-    sc = a.get("inputs:shadow:color", (0.0, 0.0, 0.0))
+    # -- shadows (fallbacks unless something is authored: the common case) --
+    if any(n.startswith(("inputs:shadow:", "shadow:")) for n in a.names):
+        lp.shadow_enable = bool(a.get("inputs:shadow:enable", True))
+        sc = a.get("inputs:shadow:color", (0.0, 0.0, 0.0))
+        sd = a.get("inputs:shadow:distance", -1.0)
+        sf = a.get("inputs:shadow:falloff", -1.0)
+        sg = a.get("inputs:shadow:falloffGamma", 1.0)
+    else:
+        lp.shadow_enable, sc, sd, sf, sg = True, (0.0, 0.0, 0.0), -1.0, -1.0, 1.0
     if _finite(sc):
         lp.shadow_color = np.array([min(max(float(sc[i]), 0.0), 1.0) for i in range(3)])
     else:
         lp.shadow_color = np.zeros(3)
-    sd = a.get("inputs:shadow:distance", -1.0)
-    sf = a.get("inputs:shadow:falloff", -1.0)
-    sg = a.get("inputs:shadow:falloffGamma", 1.0)
     lp.shadow_distance = float(sd) * s if _finite(sd) and sd > 0 else -1.0
     lp.shadow_falloff = float(sf) * s if _finite(sf) and sf > 0 else -1.0
     if lp.shadow_distance > 0 and lp.shadow_falloff > lp.shadow_distance:

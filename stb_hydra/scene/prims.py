@@ -51,6 +51,21 @@ def identity4() -> np.ndarray:
     return np.eye(4, dtype=np.float64)
 
 
+def _const(*values: float) -> np.ndarray:
+    a = np.array(values, dtype=np.float64)
+    a.flags.writeable = False
+    return a
+
+
+# Shared read-only defaults: records are built by the thousand, and every field
+# that matters is assigned a fresh array by its reader (never mutated in place).
+_ZERO3 = _const(0.0, 0.0, 0.0)
+_DOWN3 = _const(0.0, -1.0, 0.0)
+_X3 = _const(1.0, 0.0, 0.0)
+_EYE4 = np.eye(4)
+_EYE4.flags.writeable = False
+
+
 @dataclass
 class LightPrim:
     """One UsdLux light in physical units (render frame, metres).
@@ -69,12 +84,12 @@ class LightPrim:
     enabled: bool = True
     #: The light's data is usable (False after a bad-input warning).
     valid: bool = True
-    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    position: np.ndarray = field(default_factory=lambda: _ZERO3)
     #: Emission axis (light-local -Z) in the render frame, unit length.
-    direction: np.ndarray = field(default_factory=lambda: np.array([0.0, -1.0, 0.0]))
+    direction: np.ndarray = field(default_factory=lambda: _DOWN3)
     #: Light-local +X in the render frame, unit (IES phi = 0, cylinder axis).
-    tangent: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
-    intensity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tangent: np.ndarray = field(default_factory=lambda: _X3)
+    intensity: np.ndarray = field(default_factory=lambda: _ZERO3)
     emission: int = EMIT_ISOTROPIC
     #: Luminous flux estimate (lm) of the luminance channel; sun/dome: 0.
     flux: float = 0.0
@@ -88,7 +103,7 @@ class LightPrim:
     cone_angle: float = 180.0  # degrees, half angle
     cone_softness: float = 0.0
     focus: float = 0.0
-    focus_tint: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    focus_tint: np.ndarray = field(default_factory=lambda: _ZERO3)
     ies_file: str | None = None  # resolved path, None when absent/unresolved
     ies_asset: str | None = None  # authored asset path
     ies_angle_scale: float = 0.0
@@ -102,7 +117,7 @@ class LightPrim:
     specular: float = 1.0
     # ShadowAPI.
     shadow_enable: bool = True
-    shadow_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    shadow_color: np.ndarray = field(default_factory=lambda: _ZERO3)
     shadow_distance: float = -1.0  # metres, <0 = unlimited
     shadow_falloff: float = -1.0  # metres, <=0 = none
     shadow_falloff_gamma: float = 1.0
@@ -123,7 +138,7 @@ class LightPrim:
     #: World scale factor (mean axis scale of the light's transform, render frame).
     world_scale: float = 1.0
     #: Full world transform of the light (render frame, row-vector convention).
-    transform: np.ndarray = field(default_factory=identity4)
+    transform: np.ndarray = field(default_factory=lambda: _EYE4)
 
 
 @dataclass
