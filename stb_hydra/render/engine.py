@@ -37,7 +37,8 @@ from .tasks.gbuffer import GBufferTask
 from .tasks.hiz import HiZTask
 from .tasks.light_cull import LightCullTask
 from .tasks.lighting import LightingTask
-from .tasks.shadow import ShadowAtlasTask, SunShadowTask
+from .tasks.shadow import SunShadowTask
+from .tasks.shadow_atlas import ShadowAtlasTask
 from .tasks.taa import AccumulateTask
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])

@@ -29,6 +29,8 @@ from .atlas import AtlasRect
 SPOT_MAX_HALF_ANGLE_DEG = 75.0
 #: Bias as a multiple of the texel's angular size (x distance), applied at copy.
 BIAS_TEXELS = 1.0
+#: Floats per std430 ``ShadowMap`` record (``common/shadow.glsl``): mat4 + 3 vec4.
+RECORD_FLOATS = 28
 #: Receiver normal offset, in texels at the receiver's distance (lookup side).
 NORMAL_BIAS_TEXELS = 0.6
 
@@ -193,7 +195,7 @@ class ShadowCapturer:
         """The std430 ``ShadowMap`` record (28 floats) of a captured map."""
         border = limits.SHADOW_MAP_BORDER_PX
         interior = rect.size - 2 * border
-        rec = np.zeros(28, dtype=np.float32)
+        rec = np.zeros(RECORD_FLOATS, dtype=np.float32)
         if not c.omni:
             rec[0:16] = spot_view_proj(c).astype(np.float32).reshape(16)
         rec[16:19] = c.position
