@@ -64,7 +64,9 @@ def add_parser(sub) -> None:
     p.add_argument(
         "--aov",
         default="color",
-        help="comma list of AOVs: color,depth,normal,albedo (written beside OUTPUT as .exr)",
+        help="comma list of AOVs: color,depth,normal,albedo (written beside OUTPUT as .exr); "
+        "debug views bigtile,smalltile,shadowterms (--lighting stb) and lightcount "
+        "(written beside OUTPUT as .png; lightcount also as .exr counts)",
     )
     p.add_argument("--stats", help="write per-frame timings and counts to this JSON file")
     p.add_argument("--skip-existing", action="store_true", help="skip frames whose file exists")
@@ -94,11 +96,16 @@ def _run(args: argparse.Namespace) -> int:
     if args.accumulate < 1:
         raise CliError("--accumulate must be >= 1")
     aovs = [a.strip() for a in args.aov.split(",") if a.strip()]
-    unknown = sorted(set(aovs) - {"color", "depth", "normal", "albedo"})
+    from ..render.tasks.aov_output import DEBUG_AOVS, check_debug_aovs
+
+    known = ("color", "depth", "normal", "albedo", *DEBUG_AOVS)
+    unknown = sorted(set(aovs) - set(known))
     if unknown:
-        raise CliError(
-            f"unknown AOV(s) {', '.join(unknown)} (choose from color,depth,normal,albedo)"
-        )
+        raise CliError(f"unknown AOV(s) {', '.join(unknown)} (choose from {','.join(known)})")
+    try:
+        check_debug_aovs(aovs, args.lighting)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     try:
         check_output_path(args.output)
     except (ImageWriteError, ValueError) as exc:
@@ -218,6 +225,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write_outputs(eng, out, aovs, ext, pipeline, meta) -> None:
     from ..io.images import write_aov, write_image
+    from ..render.tasks.aov_output import DEBUG_AOVS, write_debug_aov
 
     res = eng.aovs
     if ext == ".exr":
@@ -230,6 +238,9 @@ def _write_outputs(eng, out, aovs, ext, pipeline, meta) -> None:
         write_image(out, res["color"], metadata=meta, color_pipeline=pipeline)
     for a in aovs:
         if a == "color":
+            continue
+        if a in DEBUG_AOVS:
+            write_debug_aov(out, a, res[a], metadata=meta)
             continue
         write_aov(out, a, res[a], metadata=meta)
 

@@ -242,6 +242,31 @@ class StbLighting(LightingMethod):
             ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
             self.engine.fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
 
+    # -- debug AOVs (``stb render --aov bigtile,smalltile,shadowterms``) --
+    #: Debug views this method draws (``shaders/debug_<name>.frag``).
+    DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
+
+    def debug_pass(self, frame, aov: str, target: str) -> bool:
+        """Draw debug view ``aov`` of this frame's STB buffers into buffer ``target``
+        (frame size, RGBA). False (nothing drawn) when the frame ran no STB passes."""
+        if aov not in self.DEBUG_AOVS:
+            raise ValueError(f"unknown stb debug AOV '{aov}' (choose from {self.DEBUG_AOVS})")
+        tex = frame.buffers.textures
+        inputs = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile"}
+        inputs["u_terms"] = "stb_terms"
+        if frame.light_count == 0 or any(n not in tex for n in inputs.values()):
+            return False
+        lut_inv, lut_fwd = self._lut_textures(frame.ctx)
+        prog = program(frame, f"debug_{aov}.frag", self.defines(frame))
+        self._common_uniforms(frame, prog)
+        unit = 0
+        for uniform, name in inputs.items():
+            unit = self._bind(frame, prog, unit, uniform, tex[name])
+        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        self.fullscreen_pass(frame, prog, target)
+        return True
+
     def release(self) -> None:
         if self._luts is not None:
             for t in self._luts:

@@ -1,0 +1,643 @@
+"""``stb bench``: frame and per-pass times, methods x light counts x resolutions.
+
+    stb bench gen:lights:50,500,5000 --methods stb,sun --size 745x360 --json out/bench.json
+    stb bench scene.usda gen:chess:500 --methods stb:N=1,stb:N=4,K=16,sun --frames 20
+    stb bench gen:lights:500 --methods stb --stb K=32 --method-option stb:eps=0.05
+
+Scenes: USD files, or generators ``gen:KIND:COUNTS[:key=value...]`` with KIND
+``lights`` (``tools/gen_lights_scene.build_lights_stage``), ``chess``
+(``tools/gen_chess_lights.build_chess_stage``) or ``orbs``
+(``tools/gen_orbs.build_orbs_stage``), COUNTS a comma list of light counts and
+``key=value`` extra generator arguments (``gen:lights:500:seed=3:animated=50``).
+
+Methods: ``--methods`` takes a comma list of ``NAME[:opt=value]``; a following
+bare ``opt=value`` item belongs to the method before it, so
+``--methods stb:N=4,K=16,sun,stb:N=1`` is stb (N=4, K=16), sun and stb (N=1).
+``--method-option NAME:opt=value[,opt=value]`` and ``--NAME opt=value[,...]``
+(one flag per registered method, e.g. ``--stb K=16``) set defaults for every
+entry of that method; an entry's own options win.
+
+Each (scene, size, method) renders ``--warmup`` + ``--frames`` frames with
+``RenderSettings(profile=True)`` (``ctx.finish()`` after every task) and reports
+medians (see :mod:`stb_hydra.apps.bench_core`). ``lights`` in a record is the
+number of FoV-culled lights in view; ``scene_lights`` the scene's local lights.
+Outputs: a table on stdout, ``--json`` (list of records), ``--csv`` and
+``--plot`` (PNG: frame time vs light count per method, and stacked per-pass
+bars); with ``--json`` alone the CSV and PNG go beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import importlib
+import io
+import json
+import os
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .common import EXIT_OK, CliError, fail
+
+DEFAULT_METHODS = "stb,reference,sun"
+DEFAULT_SIZE = (745, 360)  # the talk's Adreno 610 resolution
+
+#: Generator kind -> (tools module, builder, name of its light-count argument).
+GENERATORS: dict[str, tuple[str, str, str]] = {
+    "lights": ("gen_lights_scene", "build_lights_stage", "n_lights"),
+    "chess": ("gen_chess_lights", "build_chess_stage", "n_lights"),
+    "orbs": ("gen_orbs", "build_orbs_stage", "n_orbs"),
+}
+
+#: Pass names in the talk's words (plot legends, table).
+PASS_LABELS = {
+    "lighting.stb_bigtile": "Big-Tile SRS",
+    "lighting.stb_smalltile": "Small-Tile SRS",
+    "lighting.stb_terms": "Shadows (terms)",
+    "lighting.stb_lighting": "Lighting (STB)",
+    "lighting": "Lighting",
+    "lighting.other": "Lighting (other)",
+    "gbuffer": "G-buffer",
+    "hiz": "Min/max depth",
+    "shadow": "Sun shadow",
+    "shadow_atlas": "Shadow atlas",
+    "light_cull": "Light cull",
+    "accumulate": "Accumulate",
+    "color_correction": "Colour correction",
+    "aov_output": "AOV readback",
+    "cpu": "CPU (sync+prepare+commit)",
+}
+
+
+# --- specs -------------------------------------------------------------------------------
+
+
+@dataclass
+class MethodSpec:
+    name: str
+    options: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        if not self.options:
+            return self.name
+        return self.name + ":" + ",".join(f"{k}={_fmt(v)}" for k, v in self.options.items())
+
+
+@dataclass
+class SceneCase:
+    """One scene to benchmark: a file, or one light count of a generator."""
+
+    label: str
+    build: Callable[[], Any]
+
+
+def _fmt(v: Any) -> str:
+    return "none" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
+
+
+def parse_value(text: str) -> Any:
+    """``'4'`` -> 4, ``'0.1'`` -> 0.1, ``true/false`` -> bool, ``none`` -> None, else str."""
+    t = text.strip()
+    low = t.lower()
+    if low in ("true", "yes", "on"):
+        return True
+    if low in ("false", "no", "off"):
+        return False
+    if low in ("none", "null"):
+        return None
+    for conv in (int, float):
+        try:
+            return conv(t)
+        except ValueError:
+            pass
+    return t
+
+
+def parse_options(text: str, where: str) -> dict[str, Any]:
+    """``'N=4,K=16'`` -> {'N': 4, 'K': 16}."""
+    out: dict[str, Any] = {}
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        key, sep, val = item.partition("=")
+        if not sep or not key.strip():
+            raise CliError(f"bad option '{item}' in {where}: use key=value")
+        out[key.strip()] = parse_value(val)
+    return out
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``'745x360'`` -> (745, 360); height 0 = from the camera's aspect."""
+    w, sep, h = text.lower().partition("x")
+    try:
+        size = (int(w), int(h)) if sep else (int(w), 0)
+    except ValueError:
+        raise CliError(f"bad --size '{text}': use WIDTHxHEIGHT, e.g. 745x360") from None
+    if size[0] <= 0 or size[1] < 0 or size[0] > 16384 or size[1] > 16384:
+        raise CliError(f"bad --size '{text}': width 1..16384, height 0..16384")
+    return size
+
+
+def parse_methods(
+    specs: list[str], defaults: dict[str, dict[str, Any]], available: list[str]
+) -> list[MethodSpec]:
+    """``--methods`` items -> method specs (see the module doc); duplicates dropped."""
+    out: list[MethodSpec] = []
+    for spec in specs:
+        for item in (s.strip() for s in spec.split(",")):
+            if not item:
+                continue
+            if "=" in item and ":" not in item.split("=", 1)[0]:
+                if not out:
+                    raise CliError(f"bad --methods '{spec}': option '{item}' before any method")
+                out[-1].options.update(parse_options(item, "--methods"))
+                continue
+            name, _, opts = item.partition(":")
+            name = name.strip()
+            if name not in available:
+                raise CliError(
+                    f"unknown lighting method '{name}' (available: {', '.join(available)})"
+                )
+            out.append(MethodSpec(name, parse_options(opts, "--methods")))
+    result: list[MethodSpec] = []
+    seen: set[str] = set()
+    for m in out:
+        m.options = {**defaults.get(m.name, {}), **m.options}
+        if m.label not in seen:
+            seen.add(m.label)
+            result.append(m)
+    if not result:
+        raise CliError("no lighting methods to benchmark")
+    return result
+
+
+def method_defaults(args: argparse.Namespace, available: list[str]) -> dict[str, dict[str, Any]]:
+    """Per-method default options from ``--method-option`` and ``--NAME`` flags."""
+    out: dict[str, dict[str, Any]] = {}
+    for item in args.method_option or []:
+        name, sep, opts = item.partition(":")
+        if not sep or name not in available:
+            raise CliError(
+                f"bad --method-option '{item}': use METHOD:key=value "
+                f"(methods: {', '.join(available)})"
+            )
+        out.setdefault(name, {}).update(parse_options(opts, "--method-option"))
+    for name in available:
+        for text in getattr(args, _flag_dest(name), None) or []:
+            out.setdefault(name, {}).update(parse_options(text, f"--{name}"))
+    return out
+
+
+def _flag_dest(method: str) -> str:
+    return "opts_" + method.replace("-", "_")
+
+
+def _tools_module(name: str):
+    """``tools.<name>`` from the source checkout (generators are not installed)."""
+    try:
+        return importlib.import_module(f"tools.{name}")
+    except ImportError:
+        root = Path(__file__).resolve().parents[2]
+        if not (root / "tools" / f"{name}.py").is_file():
+            raise CliError(
+                f"scene generators need the repository's tools/{name}.py (source checkout)"
+            ) from None
+        sys.path.insert(0, str(root))
+        return importlib.import_module(f"tools.{name}")
+
+
+def parse_scene(spec: str) -> list[SceneCase]:
+    """A USD path or ``gen:KIND:COUNTS[:key=value...]`` -> scene cases."""
+    if not spec.startswith("gen:"):
+        if not Path(spec).exists():
+            raise CliError(f"cannot open stage '{spec}': file not found")
+
+        def load(path: str = spec):
+            from .common import open_stage
+
+            return open_stage(path)
+
+        return [SceneCase(spec, load)]
+    parts = spec.split(":")
+    if len(parts) < 3 or parts[1] not in GENERATORS:
+        raise CliError(
+            f"bad generator '{spec}': use gen:KIND:COUNTS with KIND one of "
+            f"{', '.join(GENERATORS)} (e.g. gen:lights:50,500)"
+        )
+    kind = parts[1]
+    try:
+        counts = [int(c) for c in parts[2].split(",") if c.strip()]
+    except ValueError:
+        raise CliError(f"bad generator '{spec}': light counts must be integers") from None
+    if not counts or min(counts) < 1:
+        raise CliError(f"bad generator '{spec}': need light counts >= 1")
+    kwargs: dict[str, Any] = {}
+    for kv in parts[3:]:
+        key, sep, val = kv.partition("=")
+        if not sep:
+            raise CliError(f"bad generator '{spec}': extra arguments are key=value")
+        kwargs[key.strip()] = parse_value(val)
+    return [SceneCase(_gen_label(kind, n, parts[3:]), _builder(kind, n, kwargs)) for n in counts]
+
+
+def _gen_label(kind: str, n: int, extra: list[str]) -> str:
+    return ":".join(["gen", kind, str(n), *extra])
+
+
+def _builder(kind: str, n: int, kwargs: dict[str, Any]) -> Callable[[], Any]:
+    mod_name, fn_name, count_arg = GENERATORS[kind]
+
+    def build():
+        fn = getattr(_tools_module(mod_name), fn_name)
+        try:
+            return fn(**{count_arg: n, **kwargs})
+        except (TypeError, ValueError, FileNotFoundError, RuntimeError) as exc:
+            msg = " ".join(str(exc).split())
+            raise CliError(f"generator gen:{kind}:{n} failed: {msg}") from None
+
+    return build
+
+
+# --- CLI ---------------------------------------------------------------------------------
+
+
+def add_parser(sub) -> None:
+    from ..render.lighting import available
+
+    p = sub.add_parser(
+        "bench",
+        help="time lighting methods over scenes/light counts and resolutions",
+        description=__doc__.split("\n\n", 1)[0],
+    )
+    p.add_argument(
+        "scenes",
+        nargs="+",
+        metavar="SCENE_OR_GENERATOR",
+        help="USD file or gen:lights:N1,N2,... / gen:chess:N / gen:orbs:N [:key=value...]",
+    )
+    p.add_argument(
+        "--methods",
+        action="append",
+        help=f"comma list of NAME[:opt=value][,opt=value] (default {DEFAULT_METHODS}; "
+        f"registered: {', '.join(available())})",
+    )
+    p.add_argument(
+        "--method-option",
+        action="append",
+        metavar="METHOD:KEY=VALUE",
+        help="default option for every entry of METHOD (repeatable)",
+    )
+    for name in available():
+        try:
+            p.add_argument(
+                f"--{name}",
+                dest=_flag_dest(name),
+                action="append",
+                metavar="KEY=VALUE[,...]",
+                help=f"default options of every '{name}' entry",
+            )
+        except argparse.ArgumentError:
+            continue  # a method named like a bench option: use --method-option
+    p.add_argument(
+        "--size",
+        action="append",
+        metavar="WxH",
+        help="resolution, repeatable (default 745x360; H=0: camera aspect)",
+    )
+    p.add_argument("--width", type=int, help="width (alternative to --size)")
+    p.add_argument("--height", type=int, help="height (with --width; default camera aspect)")
+    p.add_argument("--frames", type=int, default=10, help="measured frames (default 10)")
+    p.add_argument("--warmup", type=int, default=2, help="warm-up frames (default 2)")
+    p.add_argument("--camera", help="camera prim path (default: the stage's first camera)")
+    p.add_argument("--time", type=float, help="stage time to render (default: start time)")
+    p.add_argument("--seed", type=int, default=0, help="render seed of stochastic methods")
+    p.add_argument("--json", help="write the records (a JSON list) here")
+    p.add_argument("--csv", help="write a CSV here (default with --json: beside it)")
+    p.add_argument("--plot", help="write the plot PNG here (default with --json: beside it)")
+    p.add_argument("--no-plot", action="store_true", help="no plot PNG")
+    p.add_argument("--quiet", "-q", action="store_true", help="no table, no progress bar")
+    p.set_defaults(func=main)
+
+
+def main(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except CliError as exc:
+        return fail(str(exc))
+
+
+def _sizes(args: argparse.Namespace) -> list[tuple[int, int]]:
+    if args.size and (args.width or args.height):
+        raise CliError("use either --size or --width/--height")
+    if args.size:
+        sizes = [parse_size(s) for s in args.size]
+    elif args.width or args.height:
+        if not args.width or args.width <= 0 or (args.height or 0) < 0:
+            raise CliError("--width must be positive (and --height >= 0)")
+        sizes = [(args.width, args.height or 0)]
+    else:
+        sizes = [DEFAULT_SIZE]
+    return list(dict.fromkeys(sizes))
+
+
+def _output_paths(args: argparse.Namespace) -> tuple[str | None, str | None, str | None]:
+    js, cs, pl = args.json, args.csv, args.plot
+    if js:
+        base = os.path.splitext(js)[0]
+        cs = cs or base + ".csv"
+        pl = pl or base + ".png"
+    if args.no_plot:
+        pl = None
+    for path in (js, cs, pl):
+        if path:
+            d = os.path.dirname(os.path.abspath(path))
+            if not os.path.isdir(d):
+                raise CliError(f"cannot write '{path}': directory does not exist: '{d}'")
+    return js, cs, pl
+
+
+def _check_method_options(methods: list[MethodSpec]) -> None:
+    """Reject bad options before any scene is built (methods validate in __init__)."""
+    from ..render.lighting import method_class
+
+    for m in methods:
+        try:
+            method_class(m.name)(None, **m.options)
+        except ValueError as exc:
+            raise CliError(f"{m.label}: {exc}") from None
+        except Exception:  # noqa: BLE001 - a method needing a real engine checks later
+            continue
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..render.lighting import available
+
+    avail = available()
+    if args.frames < 1 or args.warmup < 0:
+        raise CliError("--frames must be >= 1 and --warmup >= 0")
+    methods = parse_methods(
+        args.methods or [DEFAULT_METHODS], method_defaults(args, avail), avail
+    )
+    _check_method_options(methods)
+    sizes = _sizes(args)
+    cases = [c for spec in args.scenes for c in parse_scene(spec)]
+    out_json, out_csv, out_plot = _output_paths(args)
+    records = run_bench(
+        cases,
+        methods,
+        sizes,
+        frames=args.frames,
+        warmup=args.warmup,
+        camera=args.camera,
+        time=args.time,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    if out_json:
+        _write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
+    if out_csv:
+        _write_text(out_csv, records_csv(records))
+    if out_plot:
+        plot_records(records, out_plot)
+    if not args.quiet:
+        print_table(records)
+        for path in (out_json, out_csv, out_plot):
+            if path:
+                print(f"wrote {path}", file=sys.stderr)
+    return EXIT_OK
+
+
+# --- running -----------------------------------------------------------------------------
+
+
+def run_bench(
+    cases: list[SceneCase],
+    methods: list[MethodSpec],
+    sizes: list[tuple[int, int]],
+    *,
+    frames: int = 10,
+    warmup: int = 2,
+    camera: str | None = None,
+    time: float | None = None,
+    seed: int = 0,
+    progress: bool = True,
+) -> list[dict[str, Any]]:
+    """Every (scene, size, method) -> one record (see the module doc)."""
+    from tqdm import tqdm
+
+    total = len(cases) * len(sizes) * len(methods) * (frames + warmup)
+    bar = tqdm(total=total, unit="frame", disable=None if progress else True, file=sys.stderr)
+    records: list[dict[str, Any]] = []
+    try:
+        for case in cases:
+            bar.set_description(f"building {case.label}")
+            stage = case.build()
+            for size in sizes:
+                for m in methods:
+                    bar.set_description(f"{m.label} {case.label} {size[0]}x{size[1]}")
+                    rec = bench_one(
+                        stage, case.label, m, size, frames=frames, warmup=warmup,
+                        camera=camera, time=time, seed=seed, on_frame=lambda: bar.update(1),
+                    )
+                    records.append(rec)
+                    bar.set_postfix_str(f"{rec['frame_ms']:.1f} ms")
+            del stage
+    finally:
+        bar.close()
+    return records
+
+
+def bench_one(
+    stage,
+    scene_label: str,
+    method: MethodSpec,
+    size: tuple[int, int],
+    *,
+    frames: int,
+    warmup: int,
+    camera: str | None = None,
+    time: float | None = None,
+    seed: int = 0,
+    on_frame: Callable[[], None] | None = None,
+) -> dict[str, Any]:
+    """Measure one configuration on ``stage``; the engine is always released."""
+    from ..render.engine import Engine, RenderError
+    from ..render.frame import RenderSettings
+    from ..render.gl import GLError
+    from .bench_core import load_average, measure_engine
+
+    settings = RenderSettings(
+        width=size[0],
+        height=size[1] or None,
+        camera=camera,
+        lighting=method.name,
+        seed=seed,
+        profile=True,
+        method_options=dict(method.options),
+    )
+    try:
+        eng = Engine(stage, settings, time=time)
+    except (RenderError, GLError, ValueError) as exc:
+        raise CliError(f"{method.label} on {scene_label}: {exc}") from None
+    try:
+        load_before = load_average()
+        m = measure_engine(eng, frames=frames, warmup=warmup, time=time, on_frame=on_frame)
+        scene_lights = int(eng.delegate.light_table.local_mask().sum())
+        renderer = eng.renderer_info
+    except (RenderError, GLError) as exc:
+        raise CliError(f"{method.label} on {scene_label}: {exc}") from None
+    finally:
+        eng.release()
+    return {
+        "method": method.name,
+        "label": method.label,
+        "options": dict(method.options),
+        "scene": scene_label,
+        "lights": int(m.stats.get("fov_lights", 0)),
+        "scene_lights": scene_lights,
+        "width": settings.width,
+        "height": int(settings.height or 0),
+        "frames": frames,
+        "warmup": warmup,
+        **m.summary(),
+        "stats": m.stats,
+        "load_avg": load_before,
+        "renderer": renderer,
+    }
+
+
+# --- outputs -----------------------------------------------------------------------------
+
+
+def _write_text(path: str, text: str) -> None:
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "w", encoding="utf-8", newline="") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise CliError(f"cannot write '{path}': {exc.strerror or exc}") from None
+
+
+CSV_FIELDS = (
+    "method", "label", "scene", "lights", "scene_lights", "width", "height", "frames",
+    "frame_ms", "frame_ms_min", "frame_ms_max", "gpu_ms", "cpu_ms", "cull_upload_ms", "load_avg",
+)
+
+
+def records_csv(records: list[dict[str, Any]]) -> str:
+    """One row per record: fixed columns, then ``pass:<name>`` and ``cpu:<key>`` (ms)."""
+    passes = list(dict.fromkeys(k for r in records for k in r["passes"]))
+    cpu = list(dict.fromkeys(k for r in records for k in r["timings"]))
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow([*CSV_FIELDS, *(f"pass:{p}" for p in passes), *(f"cpu:{k}" for k in cpu)])
+    for r in records:
+        w.writerow(
+            [r.get(f, "") for f in CSV_FIELDS]
+            + [r["passes"].get(p, "") for p in passes]
+            + [r["timings"].get(k, "") for k in cpu]
+        )
+    return buf.getvalue()
+
+
+def _bar_label(r: dict[str, Any]) -> str:
+    return f"{r['label']}\n{r['lights']} lights\n{r['width']}x{r['height']}"
+
+
+def plot_records(records: list[dict[str, Any]], path: str) -> None:
+    """Frame time vs FoV light count per method (and size), and stacked pass bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(records)
+    fig, (ax1, ax2) = plt.subplots(
+        2, 1, figsize=(max(10.0, 0.6 * n + 5.0), 9.0), gridspec_kw={"height_ratios": [1, 1.2]}
+    )
+    series: dict[tuple[str, int, int], list[tuple[int, float]]] = {}
+    for r in records:
+        series.setdefault((r["label"], r["width"], r["height"]), []).append(
+            (r["lights"], r["frame_ms"])
+        )
+    markers = "osD^v<>"
+    sizes = list(dict.fromkeys((w, h) for _, w, h in series))
+    for (label, w, h), pts in series.items():
+        pts.sort()
+        mk = markers[sizes.index((w, h)) % len(markers)]
+        ax1.plot([p[0] for p in pts], [p[1] for p in pts], marker=mk, label=f"{label} {w}x{h}")
+    xs = [r["lights"] for r in records if r["lights"] > 0]
+    if xs and max(xs) / max(min(xs), 1) > 20:
+        ax1.set_xscale("log")
+    ax1.set_xlabel("lights in view (FoV-culled)")
+    ax1.set_ylabel("frame time (ms, median)")
+    ax1.set_title("Frame time vs light count")
+    ax1.grid(True, alpha=0.3)
+    ax1.legend(fontsize=8, bbox_to_anchor=(1.01, 1.0), loc="upper left")
+
+    keys = ["cpu", *dict.fromkeys(k for r in records for k in r["passes"])]
+    cmap = plt.get_cmap("tab20")
+    bottoms = [0.0] * n
+    for i, k in enumerate(keys):
+        vals = [r["cpu_ms"] if k == "cpu" else r["passes"].get(k, 0.0) for r in records]
+        if not any(v > 0 for v in vals):
+            continue
+        ax2.bar(range(n), vals, bottom=bottoms, color=cmap(i % 20), label=PASS_LABELS.get(k, k))
+        bottoms = [b + v for b, v in zip(bottoms, vals)]
+    ax2.set_ylim(0.0, max(bottoms, default=1.0) * 1.08 or 1.0)
+    ax2.set_xticks(range(n))
+    ax2.set_xticklabels([_bar_label(r) for r in records], fontsize=7)
+    ax2.set_ylabel("ms (median per pass)")
+    ax2.set_title("Per-pass time (ctx.finish() after every pass)")
+    ax2.legend(fontsize=7, bbox_to_anchor=(1.01, 1.0), loc="upper left")
+    ax2.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    tmp = f"{path}.tmp-{os.getpid()}.png"
+    try:
+        fig.savefig(tmp, dpi=110)
+        os.replace(tmp, path)
+    except OSError as exc:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise CliError(f"cannot write '{path}': {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+
+
+def _top_passes(r: dict[str, Any], k: int = 4) -> str:
+    items = sorted(r["passes"].items(), key=lambda kv: -kv[1])[:k]
+    return " ".join(f"{name.removeprefix('lighting.')}={ms:.2f}" for name, ms in items)
+
+
+def print_table(records: list[dict[str, Any]]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title="stb bench (medians, ms)")
+    for col in ("method", "scene", "lights", "size", "frame", "cpu", "cull+upl", "top passes"):
+        t.add_column(col, justify="left" if col in ("method", "scene", "top passes") else "right")
+    for r in records:
+        t.add_row(
+            r["label"],
+            r["scene"],
+            f"{r['lights']}/{r['scene_lights']}",
+            f"{r['width']}x{r['height']}",
+            f"{r['frame_ms']:.2f}",
+            f"{r['cpu_ms']:.2f}",
+            f"{r['cull_upload_ms']:.3f}",
+            _top_passes(r),
+        )
+    console = Console()
+    if not console.is_terminal:
+        console = Console(width=200)
+    console.print(t)
+    loads = [r["load_avg"] for r in records if r.get("load_avg") is not None]
+    if loads:
+        print(f"load average (1 min) during the runs: {min(loads)}..{max(loads)}")
