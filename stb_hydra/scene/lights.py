@@ -284,6 +284,14 @@ def _shape_integral(
     # on the grid's edge and the midpoint rule stays accurate (no 1/N step error).
     tmax = math.radians(min(max(cone_angle, 0.0), 180.0)) if has_cone else math.pi
     dth = tmax / _NT
+    if ies_key is None and emission != prims.EMIT_CYLINDER:
+        # Axially symmetric: a 1D integral over theta (x 2 pi).
+        t1 = (np.arange(_NT) + 0.5) * dth
+        f1 = emission_factor(emission, t1, np.zeros(1)) * focus_factor(t1, focus)
+        if has_cone:
+            f1 = f1 * cone_factor(t1, cone_angle, softness)
+        integral = float(np.sum(f1 * np.sin(t1)) * dth * 2.0 * math.pi)
+        return integral, float(np.max(f1)) if f1.size else 0.0
     th = ((np.arange(_NT) + 0.5) * dth)[:, None]
     ph = _PH[None, :]
     f = np.broadcast_to(emission_factor(emission, th, ph), (_NT, _NP))
@@ -300,6 +308,19 @@ def _shape_integral(
     w = np.sin(th) * dth * _DPH
     integral = float(np.sum(f * w))
     return integral, float(np.max(f)) if f.size else 0.0
+
+
+_ies_stats_cache: dict[tuple[str, int], tuple[float, float]] = {}
+
+
+def _ies_stats(path: str, prof) -> tuple[float, float]:
+    """(max candela, power) of a profile, computed once per loaded profile."""
+    key = (path, id(prof))
+    v = _ies_stats_cache.get(key)
+    if v is None:
+        v = (float(prof.max_candela()), float(prof.power()))
+        _ies_stats_cache[key] = v
+    return v
 
 
 def _ies_cache_lookup(path: str):
@@ -612,8 +633,7 @@ def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     except IesError as exc:
         _warn(lp, ctx, f"IES file unusable ({exc}); rendering without a profile")
         return
-    mx = float(prof.max_candela())
-    power = float(prof.power())
+    mx, power = _ies_stats(resolved, prof)
     if not (math.isfinite(mx) and mx > 0):
         _warn(lp, ctx, f"IES file '{authored}' has zero power; rendering without a profile")
         return
