@@ -177,3 +177,37 @@ def test_python_api_is_deterministic(scene: Path):
     b = stb_hydra.render(str(scene), width=48)
     assert a.shape == (27, 48, 3)
     np.testing.assert_array_equal(a, b)
+
+
+def test_method_options_and_no_weight_cap(scene: Path, tmp_path: Path):
+    out = tmp_path / "s.exr"
+    r = stb(
+        "render",
+        str(scene),
+        str(out),
+        "--width",
+        "48",
+        "--lighting",
+        "stb",
+        "-o",
+        "N=4,K=32",
+        "--no-weight-cap",
+        "--accumulate",
+        "2",
+    )
+    assert r.returncode == 0, r.stderr
+    assert out.exists()
+    r = stb(
+        "render",
+        str(scene),
+        str(tmp_path / "b.exr"),
+        "--width",
+        "48",
+        "--lighting",
+        "stb",
+        "-o",
+        "K=5",
+    )
+    assert r.returncode == 2 and "K must be" in r.stderr
+    r = stb("render", str(scene), str(tmp_path / "c.exr"), "--width", "48", "--no-weight-cap")
+    assert r.returncode == 2 and "stb" in r.stderr

@@ -71,6 +71,22 @@ def add_parser(sub) -> None:
     p.add_argument("--stats", help="write per-frame timings and counts to this JSON file")
     p.add_argument("--skip-existing", action="store_true", help="skip frames whose file exists")
     p.add_argument("--ambient", type=float, default=0.0, help="extra uniform ambient (nits)")
+    p.add_argument(
+        "--option",
+        "-o",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE[,KEY=VALUE]",
+        help="lighting-method option, e.g. -o N=4,K=16 for stb (repeatable)",
+    )
+    p.add_argument(
+        "--no-weight-cap",
+        action="store_true",
+        help="stb: no weight capping (the unbiased mode; same as -o weight_cap=none)",
+    )
+    p.add_argument("--no-shadows", action="store_true", help="local lights unshadowed")
+    p.add_argument("--shadow-budget", type=int, help="shadow-atlas texels rendered per frame")
+    p.add_argument("--atlas-size", type=int, help="shadow atlas side in texels (power of two)")
     p.add_argument("--verbose", "-v", action="store_true", help="print GL renderer and warnings")
     p.set_defaults(func=main)
 
@@ -129,7 +145,19 @@ def _run(args: argparse.Namespace) -> int:
     from ..render.engine import Engine, RenderError
     from ..render.frame import RenderSettings
     from ..render.gl import GLError
+    from .bench import parse_options
 
+    options: dict = {}
+    for text in args.option:
+        options.update(parse_options(text, "--option"))
+    if args.no_weight_cap:
+        if args.lighting != "stb":
+            raise CliError("--no-weight-cap applies to --lighting stb")
+        options["weight_cap"] = None
+    if args.atlas_size is not None and (
+        args.atlas_size < 256 or args.atlas_size & (args.atlas_size - 1)
+    ):
+        raise CliError(f"--atlas-size must be a power of two >= 256, got {args.atlas_size}")
     settings = RenderSettings(
         width=args.width,
         height=args.height or None,
@@ -139,11 +167,15 @@ def _run(args: argparse.Namespace) -> int:
         accumulate=args.accumulate,
         ambient=args.ambient,
         profile=bool(args.stats),
+        shadows=not args.no_shadows,
+        shadow_budget=args.shadow_budget,
+        shadow_atlas_size=args.atlas_size,
+        method_options=options,
     )
     try:
         first = frames[0]
         eng = Engine(stage, settings, color=pipeline, time=first)
-    except (RenderError, GLError) as exc:
+    except (RenderError, GLError, ValueError) as exc:
         raise CliError(str(exc)) from None
     if args.verbose:
         print(f"stb render: {eng.renderer_info}", file=sys.stderr)
