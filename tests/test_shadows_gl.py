@@ -385,3 +385,23 @@ def test_atlas_stats_reported(gl_ctx):
 
 
 _ = math
+
+
+def test_stochastic_pcf_softens_but_agrees_away_from_edges(gl_ctx):
+    lpos = np.array([-1.0, 2.5, 0.3])
+    stage = usda_stage(HEADER + BOX + light("L", lpos))
+    pcf, eng = render(stage)
+    eng.release()
+    eng = Engine(stage, RenderSettings(width=W, height=H, shadow_filter="stochastic"))
+    try:
+        eng.render(accumulate=8)
+        sto = eng.aovs["color"][..., :3]
+    finally:
+        eng.release()
+    assert np.isfinite(sto).all()
+    pts = ground_points(stage)
+    occ = segment_hits_box(pts, lpos, (0, 0, -0.5), (1, 1, 0.5)) & ~sees_box(pts)
+    far = ~dilate(occ, 3) & ~sees_box(pts)
+    core = occ & ~dilate(~occ, 3)
+    np.testing.assert_allclose(sto[far], pcf[far], rtol=1e-2, atol=1e-4)
+    assert sto[..., 0][core].max() < 0.05 * pcf[..., 0][far].mean()

@@ -87,6 +87,12 @@ def add_parser(sub) -> None:
     p.add_argument("--no-shadows", action="store_true", help="local lights unshadowed")
     p.add_argument("--shadow-budget", type=int, help="shadow-atlas texels rendered per frame")
     p.add_argument("--atlas-size", type=int, help="shadow atlas side in texels (power of two)")
+    p.add_argument(
+        "--shadow-filter",
+        choices=("pcf", "stochastic"),
+        default="pcf",
+        help="local shadow filter: 4-tap gather PCF, or stochastic PCF",
+    )
     p.add_argument("--verbose", "-v", action="store_true", help="print GL renderer and warnings")
     p.set_defaults(func=main)
 
@@ -170,6 +176,7 @@ def _run(args: argparse.Namespace) -> int:
         shadows=not args.no_shadows,
         shadow_budget=args.shadow_budget,
         shadow_atlas_size=args.atlas_size,
+        shadow_filter=args.shadow_filter,
         method_options=options,
     )
     try:

@@ -29,6 +29,9 @@ class RenderSettings:
     #: None = limits.SHADOW_ATLAS_SIZE_DEFAULT / SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT.
     shadow_atlas_size: int | None = None
     shadow_budget: int | None = None
+    #: Local shadow filter: "pcf" (4-tap gather) or "stochastic" (gather + a random
+    #: sub-texel offset per pixel and frame; converges softer under accumulation).
+    shadow_filter: str = "pcf"
     #: Extra uniform ambient radiance (nits) added to the dome, e.g. for thumbnails.
     ambient: float = 0.0
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).

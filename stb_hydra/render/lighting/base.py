@@ -43,6 +43,8 @@ class LightingMethod:
                 defines["HAS_CONES"] = True
             if d.fov_flags["shadows"]:
                 defines["HAS_SHADOWS"] = True
+                if frame.settings.shadow_filter == "stochastic":
+                    defines["STOCHASTIC_PCF"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:
