@@ -106,7 +106,8 @@ class ShadowAtlasTask(Task):
     def prepare(self, frame) -> None:
         eng = self.engine
         d = eng.delegate
-        if not frame.settings.shadows:
+        if not frame.settings.shadows or not eng.method.uses_local_lights:
+            # Nothing samples local shadows (sun-only): capture nothing.
             d.fov_shadow_maps = None
             self._plan = []
             return
