@@ -217,3 +217,52 @@ VALIDATE_UNITS_RTOL = 0.01
 
 #: Wall-clock limit (s) for one asset in a worker before it is killed and reported.
 VALIDATE_ASSET_TIMEOUT_S = 300.0
+
+# --- Baselines --------------------------------------------------------------------------
+# The exact many-light baselines `tiled`, `clustered`, `lighttree` (docs/BASELINES.md).
+
+#: Tiled deferred tile side (px): Andersson 2009's 16x16 tiles = min/max depth level 4.
+TILED_TILE_PX = 16
+#: Default per-tile light-list cap: 64, as Unity HDRP's FPTL. Lights past it are dropped
+#: (and counted): the flickering-tile artefact of capped tiled lighting.
+TILED_CAP_DEFAULT = 64
+#: Culling invocations per tile / cluster workgroup: one light per invocation per step,
+#: list order kept with two 32-bit ballot words (so at most 64).
+CULL_GROUP_SIZE = 64
+
+#: Most light-list entries (light x tile/cluster pairs) one frame may store: 32 Mi uint32
+#: = 128 MiB of SSBO. Uncapped lists of huge lights over many cells past this get a
+#: uniform per-cell cap (drops counted, one warning) instead of an allocation failure.
+GRID_MAX_LIST_ENTRIES = 32 * 1024 * 1024
+
+#: Clustered / light-tree screen tile (px): Persson 2013 uses 64 px tiles; O'Donnell and
+#: Chajdas found 32-64 px the best CPU/GPU trade-off (their 48 px).
+CLUSTER_TILE_PX_DEFAULT = 64
+CLUSTER_TILE_PX_RANGE = (8, 256)
+#: Exponential depth slices after the near slice (Persson: 16 incl. the near one; we
+#: add the near slice on top, as the issue asks). 0 = 2D tiles only (tree-only mode).
+CLUSTER_SLICES_DEFAULT = 16
+#: More slices than this cost more cluster headers than they save list entries at any
+#: resolution we render (and the per-cluster GPU assignment runs one workgroup each).
+CLUSTER_SLICES_MAX = 64
+#: End of the near slice as a fraction of the far end of the slicing when not given:
+#: Persson's 5 m of 500 m (the near slice absorbs the first-person clutter).
+CLUSTER_NEAR_FRACTION = 0.01
+
+#: Relative widening of influence radii and of cell depth bounds in every culling test,
+#: plus a depth-relative term: fp32 depth reconstruction on the GPU differs from the
+#: float64 CPU binning by ~1e-7 relative, so "no cap" stays exactly the reference.
+CULL_RADIUS_REL_MARGIN = 1.0e-4
+CULL_DEPTH_REL_MARGIN = 1.0e-5
+
+#: Light-tree leaf size (lights per leaf) by default: the paper targets "several".
+LIGHTTREE_LEAF_LIGHTS_DEFAULT = 4
+#: Packed node (Listing 1): 16-bit light count, 15-bit skip count. A list cell (one leaf)
+#: holds at most 2^16 - 1 lights (bigger cells become trees); a tree at most 2^15 - 1
+#: nodes, i.e. 16384 leaves (a full binary tree of L leaves has 2L - 1 nodes).
+LIGHTTREE_MAX_NODE_LIGHTS = (1 << 16) - 1
+LIGHTTREE_MAX_TREE_NODES = (1 << 15) - 1
+LIGHTTREE_MAX_LEAVES = 1 << 14
+#: Node budget per frame: 16 Mi nodes x 16 B = 256 MiB; with >= 2 lights per leaf the
+#: nodes never outnumber GRID_MAX_LIST_ENTRIES, so this is a safety net, not a tuning knob.
+LIGHTTREE_MAX_NODES = 16 * 1024 * 1024

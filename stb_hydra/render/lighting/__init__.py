@@ -8,6 +8,9 @@ _REGISTRY = {
     "reference": ("reference", "ReferenceLighting"),
     "sun": ("sun_only", "SunOnlyLighting"),
     "stb": ("stb", "StbLighting"),
+    "tiled": ("tiled", "TiledLighting"),
+    "clustered": ("clustered", "ClusteredLighting"),
+    "lighttree": ("light_tree", "LightTreeLighting"),
 }
 
 

@@ -1,0 +1,211 @@
+"""`clustered`: practical clustered shading (Persson 2013, Just Cause 3).
+
+A 2.5D grid in view space: ``tile`` px screen tiles (default 64) x depth cells -- a
+near slice ``[0, near_split)`` then ``slices`` exponential slices (default 16) up to
+``far``; deeper pixels use the last slice. ``near_split``/``far`` default to the
+scene's geometry bounds seen from the camera (``light_tree_build.auto_depth_range``).
+
+Light assignment (``assign``):
+
+* ``"cpu"`` (default): vectorised numpy binning (``light_tree_build.bin_lights``):
+  per light its slice range, per (light, slice) the screen rectangle of the sphere
+  clipped to the slice, every cluster of that rectangle; CSR lists sorted by cluster
+  (FoV order inside a cluster), uploaded per frame.
+* ``"gpu"``: one compute workgroup per cluster tests every FoV light against the
+  cluster's frustum (``clustered_assign.comp`` = ``tiled_cull.comp`` with slice depth
+  bounds).
+
+Shading (``clustered_lighting.frag``): the pixel's cluster from its tile and the slice
+of its view depth, then the reference light loop over the list (per-pixel shadows).
+``cap`` (default none) keeps at most that many lights per cluster (lowest FoV indices;
+drops counted in ``frame.stats["dropped_lights"]``). Without a cap the image equals
+``reference``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ... import limits
+from ..gl import set_uniform, shader_library
+from .base import LightingMethod, program
+from .light_tree_build import ClusterGrid, ViewParams, auto_depth_range, bin_lights, cell_lists
+from .tiled import (
+    BIND_EXTRA,
+    BIND_HEADERS,
+    BIND_LISTS,
+    SSBOPool,
+    cull_uniforms,
+    parse_cap,
+    read_stats,
+    shade_direct,
+    warn,
+)
+
+GRID_DEFAULTS = {
+    "tile": limits.CLUSTER_TILE_PX_DEFAULT,
+    "slices": limits.CLUSTER_SLICES_DEFAULT,
+    "near_split": None,
+    "far": None,
+}
+DEFAULTS = {**GRID_DEFAULTS, "assign": "cpu", "cap": None}
+
+
+def check_grid_options(name: str, o: dict) -> None:
+    lo, hi = limits.CLUSTER_TILE_PX_RANGE
+    if not lo <= int(o["tile"]) <= hi:
+        raise ValueError(f"{name} tile must be {lo}..{hi} px, got {o['tile']}")
+    if not 0 <= int(o["slices"]) <= limits.CLUSTER_SLICES_MAX:
+        raise ValueError(f"{name} slices must be 0..{limits.CLUSTER_SLICES_MAX}, got {o['slices']}")
+    for k in ("near_split", "far"):
+        v = o[k]
+        if v is not None and not (math.isfinite(float(v)) and float(v) > 0):
+            raise ValueError(f"{name} {k} must be a positive number of metres, got {v}")
+    if o["near_split"] is not None and o["far"] is not None and o["near_split"] >= o["far"]:
+        raise ValueError(f"{name} needs near_split < far")
+
+
+def frame_grid(engine, frame, o: dict) -> tuple[ClusterGrid, ViewParams]:
+    """This frame's grid: options, else the automatic depth range."""
+    vp = ViewParams.from_setup(frame.view)
+    w, h = frame.buffers.size if frame.buffers.size[0] else (vp.width, vp.height)
+    ns, far = o["near_split"], o["far"]
+    if ns is None or far is None:
+        a_ns, a_far = auto_depth_range(vp, getattr(engine.delegate, "scene_bounds", None))
+        far = float(far) if far is not None else max(a_far, (ns or 0.0) * 2.0)
+        ns = float(ns) if ns is not None else min(a_ns, 0.5 * far)
+    grid = ClusterGrid(w, h, int(o["tile"]), int(o["slices"]), float(ns), float(far))
+    return grid, vp
+
+
+def fov_lights(engine) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 3) positions and (n,) ranges of the FoV lights, in ``lights[]`` order."""
+    d = engine.delegate
+    t, rows = d.light_table, d.fov_rows
+    return (
+        np.asarray(t.position[rows], dtype=np.float64),
+        np.asarray(t.range[rows], dtype=np.float64),
+    )
+
+
+def grid_uniforms(prog, grid: ClusterGrid) -> None:
+    set_uniform(prog, "u_grid", grid.tiles)
+    set_uniform(prog, "u_tile_px", grid.tile)
+    set_uniform(prog, "u_slices", grid.shader_params())
+
+
+class ClusteredLighting(LightingMethod):
+    name = "clustered"
+
+    def __init__(self, engine, **options) -> None:
+        unknown = set(options) - set(DEFAULTS)
+        if unknown:
+            raise ValueError(f"unknown clustered option(s): {', '.join(sorted(unknown))}")
+        o = {**DEFAULTS, **options}
+        check_grid_options("clustered", o)
+        if o["assign"] not in ("cpu", "gpu"):
+            raise ValueError(f"clustered assign must be 'cpu' or 'gpu', got {o['assign']!r}")
+        try:
+            o["cap"] = parse_cap(o["cap"])
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"clustered cap must be a positive integer or none, got {o['cap']!r}"
+            ) from None
+        super().__init__(engine, **o)
+        self.o = o
+        self.pool: SSBOPool | None = None
+        self.grid: ClusterGrid | None = None
+        self.lists = None
+
+    def prepare(self, frame) -> None:
+        if frame.light_count == 0:
+            return
+        self.grid, vp = frame_grid(self.engine, frame, self.o)
+        self.lists = None
+        if self.o["assign"] != "cpu":
+            return
+        pos, rng = fov_lights(self.engine)
+        bins = bin_lights(self.grid, vp, pos, rng)
+        C = self.grid.count
+        cap = self.o["cap"]
+        if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
+            budget = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
+            cap = budget if cap is None else min(cap, budget)
+            warn(self.engine, f"clustered: {len(bins.cell)} light-cluster pairs exceed "
+                 f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
+        self.lists = cell_lists(C, bins.cell, bins.light, cap)
+
+    def execute(self, frame) -> None:
+        if frame.light_count == 0:
+            shade_direct(self, frame)
+            return
+        ctx = frame.ctx
+        if self.pool is None:
+            self.pool = SSBOPool(ctx)
+        grid = self.grid
+        C = grid.count
+        if self.lists is not None:
+            with frame.timings_scope("clustered_upload"):
+                L = self.lists
+                hdr = np.empty((C, 2), dtype=np.uint32)
+                hdr[:, 0], hdr[:, 1] = L.offset, L.count
+                headers = self.pool.upload("headers", hdr, BIND_HEADERS)
+                lists = self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
+            frame.stats["dropped_lights"] = int(L.dropped)
+            frame.stats["list_entries"] = int(L.entries)
+            frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
+        else:
+            headers, lists = self._assign_gpu(frame)
+
+        with frame.timings_scope("clustered_shade"):
+            prog = program(frame, "clustered_lighting.frag", self.scene_defines(frame))
+            self.bind_common(frame, prog)
+            headers.bind_to_storage_buffer(BIND_HEADERS)
+            lists.bind_to_storage_buffer(BIND_LISTS)
+            grid_uniforms(prog, grid)
+            self.fullscreen_pass(frame, prog, "lighting")
+        if self.lists is None:
+            frame.stats.update(
+                {k: v for k, v in read_stats(self._stats).items() if k != "cells_over_cap"}
+            )
+        frame.stats["clusters"] = C
+        frame.stats["cluster_depth_range"] = [grid.near_split, grid.far]
+
+    def _assign_gpu(self, frame):
+        ctx = frame.ctx
+        grid = self.grid
+        gx, gy, gz = grid.dims
+        C = grid.count
+        n = frame.light_count
+        want = self.o["cap"] if self.o["cap"] is not None else n
+        stride = min(want, max(1, limits.GRID_MAX_LIST_ENTRIES // C))
+        if stride < want:
+            warn(self.engine, f"clustered: {C} clusters x {want} lights exceed "
+                 f"{limits.GRID_MAX_LIST_ENTRIES} list entries; lists capped at {stride}")
+        headers = self.pool.get("headers", C * 8)
+        lists = self.pool.get("lists", C * stride * 4)
+        stats = self.pool.get("stats", 16 + C * 4)
+        stats.write(np.zeros(4, dtype=np.uint32).tobytes())
+        self._stats = stats
+        with frame.timings_scope("clustered_assign"):
+            cs = shader_library(ctx).compute(
+                "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
+            )
+            self.engine.delegate.light_ssbo.bind_to_storage_buffer(0)
+            headers.bind_to_storage_buffer(BIND_HEADERS)
+            lists.bind_to_storage_buffer(BIND_LISTS)
+            stats.bind_to_storage_buffer(BIND_EXTRA)
+            grid_uniforms(cs, grid)
+            set_uniform(cs, "u_stride", stride)
+            set_uniform(cs, "u_cap", stride)
+            cull_uniforms(cs, frame)
+            cs.run(gx, gy, gz)
+            ctx.memory_barrier()
+        return headers, lists
+
+    def release(self) -> None:
+        if self.pool is not None:
+            self.pool.release()
+            self.pool = None

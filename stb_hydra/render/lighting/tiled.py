@@ -1,0 +1,220 @@
+"""`tiled`: tiled deferred lighting (Andersson 2009, "Parallel graphics in Frostbite").
+
+1. Culling (``tiled_cull.comp``): one compute workgroup per 16x16 px tile tests every
+   FoV light's influence sphere against the tile's frustum -- the four side planes
+   through its pixel edges and the tile's min/max view depth from the depth pyramid
+   (level 4) -- and compacts the hits, in FoV order, into the tile's list.
+2. Shading (``tiled_lighting.frag``): per pixel the reference light loop over its
+   tile's list, with per-pixel shadows (``local_shadow``) for every listed light.
+
+The list holds at most ``tile_cap`` lights (default 64, as Unity HDRP's FPTL; ``None``
+/ ``"none"`` / 0 = no cap). Lights past the cap are dropped -- the lowest FoV indices
+are kept, so which lights survive is deterministic -- and counted per frame in
+``frame.stats``: ``dropped_lights`` (light-tile pairs), ``tiles_over_cap``,
+``max_tile_lights`` (longest uncapped list), ``list_entries``. Without a cap the
+image equals ``reference`` (same includes, same summation order).
+
+Options: ``tile_cap`` (int >= 1 or none), ``stats`` (read the four counters back each
+frame: a small sync; default on).
+"""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from ... import limits
+from ..gl import set_uniform, shader_library
+from .base import LightingMethod, program
+
+#: First texture unit for the baselines' own textures (the shared ones stay below).
+FIRST_UNIT = 10
+#: SSBO bindings (0 = lights, 1 = shadow maps are shared).
+BIND_HEADERS, BIND_LISTS, BIND_EXTRA = 2, 3, 4
+
+DEFAULTS = {"tile_cap": limits.TILED_CAP_DEFAULT, "stats": True}
+
+
+def parse_cap(value) -> int | None:
+    """None / "none" / "off" / 0 / negative / False -> None (no cap), else int >= 1."""
+    if value is None or value is False:
+        return None
+    if isinstance(value, str):
+        v = value.strip().lower()
+        if v in ("none", "off", "no", "inf", ""):
+            return None
+        value = int(v)
+    cap = int(value)
+    return None if cap <= 0 else cap
+
+
+class SSBOPool:
+    """Grow-only storage buffers by name (re-used across frames)."""
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.ctx = ctx
+        self.buffers: dict[str, moderngl.Buffer] = {}
+
+    def get(self, name: str, nbytes: int) -> moderngl.Buffer:
+        nbytes = max(int(nbytes), 16)
+        b = self.buffers.get(name)
+        if b is None or b.size < nbytes:
+            if b is not None:
+                b.release()
+            size = 1 << max(4, math.ceil(math.log2(nbytes)))  # amortise growth
+            b = self.ctx.buffer(reserve=size)
+            self.buffers[name] = b
+        return b
+
+    def upload(self, name: str, data: np.ndarray, binding: int) -> moderngl.Buffer:
+        raw = np.ascontiguousarray(data).tobytes()
+        b = self.get(name, len(raw))
+        if raw:
+            b.write(raw)
+        b.bind_to_storage_buffer(binding)
+        return b
+
+    def release(self) -> None:
+        for b in self.buffers.values():
+            b.release()
+        self.buffers.clear()
+
+
+def warn(engine, msg: str) -> None:
+    w = getattr(engine, "_warn_once", None)
+    if w is not None:
+        w(msg)
+
+
+def shade_direct(method: LightingMethod, frame) -> None:
+    """No local lights in view: sun + ambient only (the reference's light-less path)."""
+    prog = program(frame, "lighting_direct.frag", method.scene_defines(frame))
+    method.bind_common(frame, prog)
+    method.fullscreen_pass(frame, prog, "lighting")
+
+
+def cull_uniforms(prog, frame) -> None:
+    """Margins and the world -> view radius scale of ``tiled_cull.comp`` (the GPU twin
+    of ``light_tree_build.widened_radius``)."""
+    set_uniform(prog, "u_rel_margin", float(limits.CULL_RADIUS_REL_MARGIN))
+    set_uniform(prog, "u_depth_margin", float(limits.CULL_DEPTH_REL_MARGIN))
+    scale = np.linalg.norm(np.asarray(frame.view.view, dtype=np.float64)[:3, :3], 2)
+    set_uniform(prog, "u_radius_scale", float(scale))
+
+
+def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
+    v = np.frombuffer(buf.read(size=16), dtype=np.uint32)
+    return {
+        "dropped_lights": int(v[0]),
+        "cells_over_cap": int(v[1]),
+        "max_cell_lights": int(v[2]),
+        "list_entries": int(v[3]),
+    }
+
+
+class TiledLighting(LightingMethod):
+    name = "tiled"
+
+    def __init__(self, engine, **options) -> None:
+        unknown = set(options) - set(DEFAULTS)
+        if unknown:
+            raise ValueError(f"unknown tiled option(s): {', '.join(sorted(unknown))}")
+        o = {**DEFAULTS, **options}
+        try:
+            o["tile_cap"] = parse_cap(o["tile_cap"])
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"tiled tile_cap must be a positive integer or none, got {o['tile_cap']!r}"
+            ) from None
+        super().__init__(engine, **o)
+        self.o = o
+        self.cap: int | None = o["tile_cap"]
+        self.tile = limits.TILED_TILE_PX
+        self.pool: SSBOPool | None = None
+        self.tiles = (0, 0)
+        self.stats_buffer = None
+
+    def grid(self, width: int, height: int) -> tuple[int, int]:
+        return (math.ceil(width / self.tile), math.ceil(height / self.tile))
+
+    def prepare(self, frame) -> None:
+        hiz = self.engine.task("hiz")
+        hiz.levels = max(hiz.levels, int(math.log2(self.tile)))
+
+    def execute(self, frame) -> None:
+        w, h = frame.buffers.size
+        gx, gy = self.grid(w, h)
+        if frame.light_count == 0:
+            self.tiles, self.stats_buffer = (gx, gy), None
+            shade_direct(self, frame)
+            return
+        ctx = frame.ctx
+        if self.pool is None:
+            self.pool = SSBOPool(ctx)
+        tiles = gx * gy
+        n = frame.light_count
+        want = self.cap if self.cap is not None else n
+        stride = min(want, max(1, limits.GRID_MAX_LIST_ENTRIES // tiles))
+        if stride < want:
+            warn(
+                self.engine,
+                f"tiled: {tiles} tiles x {want} lights exceed {limits.GRID_MAX_LIST_ENTRIES} "
+                f"list entries; lists capped at {stride}",
+            )
+        headers = self.pool.get("headers", tiles * 8)
+        lists = self.pool.get("lists", tiles * stride * 4)
+        stats = self.pool.get("stats", 16 + tiles * 4)
+        stats.write(np.zeros(4, dtype=np.uint32).tobytes())
+        self.stats_buffer, self.tiles = stats, (gx, gy)
+
+        with frame.timings_scope("tiled_cull"):
+            cs = shader_library(ctx).compute(
+                "tiled_cull.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
+            )
+            self.engine.delegate.light_ssbo.bind_to_storage_buffer(0)
+            headers.bind_to_storage_buffer(BIND_HEADERS)
+            lists.bind_to_storage_buffer(BIND_LISTS)
+            stats.bind_to_storage_buffer(BIND_EXTRA)
+            hiz = frame.buffers.textures[f"hiz{int(math.log2(self.tile))}"]
+            hiz.use(FIRST_UNIT)
+            set_uniform(cs, "u_hiz", FIRST_UNIT)
+            set_uniform(cs, "u_grid", (gx, gy))
+            set_uniform(cs, "u_tile_px", self.tile)
+            set_uniform(cs, "u_stride", stride)
+            set_uniform(cs, "u_cap", stride)
+            cull_uniforms(cs, frame)
+            cs.run(gx, gy, 1)
+            ctx.memory_barrier()
+
+        with frame.timings_scope("tiled_shade"):
+            prog = program(frame, "tiled_lighting.frag", self.scene_defines(frame))
+            self.bind_common(frame, prog)
+            headers.bind_to_storage_buffer(BIND_HEADERS)
+            lists.bind_to_storage_buffer(BIND_LISTS)
+            set_uniform(prog, "u_grid", (gx, gy))
+            set_uniform(prog, "u_tile_px", self.tile)
+            self.fullscreen_pass(frame, prog, "lighting")
+
+        frame.stats["tile_cap"] = self.cap if self.cap is not None else 0
+        if self.o["stats"]:
+            s = read_stats(stats)
+            frame.stats["dropped_lights"] = s["dropped_lights"]
+            frame.stats["tiles_over_cap"] = s["cells_over_cap"]
+            frame.stats["max_tile_lights"] = s["max_cell_lights"]
+            frame.stats["list_entries"] = s["list_entries"]
+
+    def tile_totals(self) -> np.ndarray:
+        """(tiles_y, tiles_x) uncapped light count per tile of the last frame (GL rows:
+        row 0 is the bottom of the image). Tests and debugging."""
+        gx, gy = self.tiles
+        if self.stats_buffer is None:
+            return np.zeros((gy, gx), dtype=np.int64)
+        raw = self.stats_buffer.read(size=4 * gx * gy, offset=16)
+        return np.frombuffer(raw, dtype=np.uint32).reshape(gy, gx).astype(np.int64)
+
+    def release(self) -> None:
+        if self.pool is not None:
+            self.pool.release()
+            self.pool = None

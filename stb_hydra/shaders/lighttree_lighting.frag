@@ -1,0 +1,73 @@
+// Shading of `lighttree` (O'Donnell & Chajdas 2017, hybrid): the pixel's cell (tile x
+// exponential depth slice) holds a list (one leaf node) or a light tree; the stack-
+// less walk of Listing 3 visits nodes in memory order: a node whose depth interval
+// holds the pixel's view depth is entered (a leaf evaluates its lights), a missed
+// node jumps over its subtree by its skip count. Node (Listing 1, std430 16 B):
+// min depth, max depth, first light, bits = leaf | count << 1 | skip << 17.
+// The light loop is the reference's (same includes) over the leaf's lights.
+#include "common/gbuffer.glsl"
+#include "common/sun.glsl"
+#include "common/lights.glsl"
+#include "common/shadow.glsl"
+
+struct Node {
+    float min_depth;
+    float max_depth;
+    uint first_light;
+    uint bits;
+};
+layout(std430, binding = 2) readonly buffer CellHeaders { uvec2 cell_header[]; };  // first node, nodes
+layout(std430, binding = 3) readonly buffer TreeNodes { Node nodes[]; };
+layout(std430, binding = 4) readonly buffer TreeLights { uint tree_lights[]; };
+uniform ivec2 u_grid;
+uniform int u_tile_px;
+uniform vec4 u_slices;     // near_split, far, slices, slices / ln(far / near_split)
+
+int depth_slice(float d) {
+    if (u_slices.z < 0.5 || d < u_slices.x) return 0;
+    int j = int(floor(log(d / u_slices.x) * u_slices.w));
+    return 1 + clamp(j, 0, int(u_slices.z) - 1);
+}
+
+layout(location = 0) out vec4 o_color;
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    Surface s;
+    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    if (!read_surface(px, s)) {
+        o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
+            ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+        return;
+    }
+    vec3 c = sun_and_ambient(s);
+    float depth = texelFetch(g_depth, px, 0).r;
+    ivec2 tile = px / u_tile_px;
+    int cell = (depth_slice(depth) * u_grid.y + tile.y) * u_grid.x + tile.x;
+    uvec2 h = cell_header[cell];
+    uint ni = 0u;
+    while (ni < h.y) {
+        Node nd = nodes[h.x + ni];
+        if (depth >= nd.min_depth && depth <= nd.max_depth) {
+            if ((nd.bits & 1u) != 0u) {
+                uint count = (nd.bits >> 1) & 0xFFFFu;
+                for (uint k = 0u; k < count; ++k) {
+                    uint i = tree_lights[nd.first_light + k];
+                    if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+                    Light L = lights[i];
+                    vec3 Ldir; float dist;
+                    vec3 E = light_illuminance(L, s.P, Ldir, dist);
+                    if (E.r + E.g + E.b <= 0.0) continue;
+                    vec3 d, sp;
+                    brdf_eval(s, Ldir, d, sp);
+                    c += (d * L.misc.z + sp * L.misc.w) * E * local_shadow(L, s.P, s.N);
+                }
+            }
+            ni += 1u;
+        } else {
+            ni += nd.bits >> 17;
+        }
+    }
+    c += emission;
+    o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
+}

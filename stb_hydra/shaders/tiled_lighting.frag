@@ -1,0 +1,57 @@
+// Shading of the list-based exact methods: `tiled` (cell = 16 px tile) and, with
+// CLUSTERED defined, `clustered` (cell = tile x exponential depth slice). The light
+// loop is the reference's (lighting_direct.frag) over the cell's list, which holds
+// FoV indices in increasing order: same includes, same order of the non-zero terms.
+// A light is skipped when the pixel is at or past its range -- the very test
+// light_falloff makes before returning 0 -- before its full record is read.
+#include "common/gbuffer.glsl"
+#include "common/sun.glsl"
+#include "common/lights.glsl"
+#include "common/shadow.glsl"
+
+layout(std430, binding = 2) readonly buffer CellHeaders { uvec2 cell_header[]; };
+layout(std430, binding = 3) readonly buffer CellLights { uint cell_lights[]; };
+uniform ivec2 u_grid;      // tiles along x, y
+uniform int u_tile_px;     // tile side (px)
+#ifdef CLUSTERED
+uniform vec4 u_slices;     // near_split, far, slices, slices / ln(far / near_split)
+
+int depth_slice(float d) {
+    if (u_slices.z < 0.5 || d < u_slices.x) return 0;
+    int j = int(floor(log(d / u_slices.x) * u_slices.w));
+    return 1 + clamp(j, 0, int(u_slices.z) - 1);
+}
+#endif
+
+layout(location = 0) out vec4 o_color;
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    Surface s;
+    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    if (!read_surface(px, s)) {
+        o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
+            ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+        return;
+    }
+    vec3 c = sun_and_ambient(s);
+    ivec2 tile = px / u_tile_px;
+    int cell = tile.y * u_grid.x + tile.x;
+#ifdef CLUSTERED
+    cell += depth_slice(texelFetch(g_depth, px, 0).r) * u_grid.x * u_grid.y;
+#endif
+    uvec2 h = cell_header[cell];
+    for (uint k = 0u; k < h.y; ++k) {
+        uint i = cell_lights[h.x + k];
+        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        Light L = lights[i];
+        vec3 Ldir; float dist;
+        vec3 E = light_illuminance(L, s.P, Ldir, dist);
+        if (E.r + E.g + E.b <= 0.0) continue;
+        vec3 d, sp;
+        brdf_eval(s, Ldir, d, sp);
+        c += (d * L.misc.z + sp * L.misc.w) * E * local_shadow(L, s.P, s.N);
+    }
+    c += emission;
+    o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
+}
