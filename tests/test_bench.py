@@ -113,6 +113,32 @@ def test_split_and_measure_fake_engine():
     assert median_dict([{"a": 1.0}, {"b": 3.0}, {"a": 2.0}]) == {"a": 1.0, "b": 0.0}
 
 
+class SlowFakeEngine(FakeEngine):
+    """Each frame takes ``delay`` seconds of wall time."""
+
+    def __init__(self, delay):
+        super().__init__()
+        self.delay = delay
+
+    def render_frame(self, time=None):
+        import time as _t
+
+        _t.sleep(self.delay)
+        return super().render_frame(time)
+
+
+def test_max_seconds_caps_slow_methods_but_keeps_one_measured_frame():
+    eng = SlowFakeEngine(0.03)
+    m = measure_engine(eng, frames=10, warmup=3, max_seconds=0.001)
+    assert eng.n == 2 and len(m.frame) == 1  # one warm-up, one measured
+    eng = SlowFakeEngine(0.0)
+    m = measure_engine(eng, frames=4, warmup=2, max_seconds=60.0)
+    assert eng.n == 6 and len(m.frame) == 4  # a generous budget changes nothing
+    eng = SlowFakeEngine(0.03)
+    m = measure_engine(eng, frames=10, warmup=0, max_seconds=0.001)
+    assert eng.n == 1 and len(m.frame) == 1
+
+
 # --- a real run -------------------------------------------------------------------------------
 
 

@@ -346,3 +346,24 @@ def test_time_default_is_stage_start():
     stage = many_lights_stage(2, animated=2)
     si = StageSceneIndex(stage)
     assert si.time == Usd.TimeCode(1.0)
+
+
+def test_attribute_authored_between_population_and_first_sync_is_read():
+    """Population caches each light's authored names for its first read; an edit
+    that authors a new attribute before that read must not be lost."""
+    stage = Usd.Stage.CreateInMemory()
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    light = UsdLux.SphereLight.Define(stage, "/L")
+    light.CreateIntensityAttr(10.0)
+    si = StageSceneIndex(stage)
+    ri = RenderIndex(si, RenderDelegate())  # nothing synced yet
+    # New attribute specs, no schema change (which would resync the whole prim).
+    light.GetPrim().CreateAttribute("inputs:shaping:cone:angle", Sdf.ValueTypeNames.Float).Set(
+        30.0
+    )
+    light.CreateColorAttr((1.0, 0.0, 0.0))
+    si.apply_pending_updates()
+    ri.sync_all()
+    lp = ri.prims["/L"].light
+    assert lp.has_cone and lp.cone_angle == pytest.approx(30.0)
+    assert lp.intensity[1] == 0.0 and lp.intensity[0] > 0.0

@@ -8,8 +8,9 @@
 * ``orbs``: 1,000 frames of the orbs scene (``gen_orbs``: orbs spawn and move,
   dynamic shadows): atlas occupancy and fragmentation at the end, staleness.
 
-The lighting method is ``sun`` (the atlas work does not depend on the method) at
-745x360 unless ``--size`` says otherwise. Prints a table; ``--json`` writes it.
+The lighting method is ``stb`` (N=1; the atlas work does not depend on the method,
+but ``sun`` samples no local shadows and so captures none) at 745x360 unless
+``--method`` / ``--size`` say otherwise. Prints a table; ``--json`` writes it.
 
     .venv/bin/python tools/bench_shadows.py [--cases room,chess,moving,orbs] [--frames 1000]
 """
@@ -30,11 +31,14 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 
+METHOD = "stb"
+
+
 def _engine(stage, width, height):
     from stb_hydra.render.engine import Engine
     from stb_hydra.render.frame import RenderSettings
 
-    eng = Engine(stage, RenderSettings(width=width, height=height, lighting="sun"))
+    eng = Engine(stage, RenderSettings(width=width, height=height, lighting=METHOD))
     eng.request_aovs(set())
     eng.aov_output.requested = set()
     return eng
@@ -128,7 +132,12 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=1000, help="frames of the orbs run")
     ap.add_argument("--size", default="745x360")
     ap.add_argument("--json")
+    ap.add_argument(
+        "--method", default=METHOD, help="lighting method (one that samples local shadows)"
+    )
     a = ap.parse_args(argv)
+    global METHOD
+    METHOD = a.method
     from pxr import Usd
 
     import stb_hydra  # noqa: F401
@@ -138,7 +147,7 @@ def main(argv=None) -> int:
 
     w, h = (int(x) for x in a.size.split("x"))
     cases = [c.strip() for c in a.cases.split(",") if c.strip()]
-    out: dict = {"size": a.size, "load_avg_1min": os.getloadavg()[0]}
+    out: dict = {"size": a.size, "method": METHOD, "load_avg_1min": os.getloadavg()[0]}
     tmp = Path(tempfile.mkdtemp(prefix="stb_shadow_bench_"))
     if "room" in cases:
         st = build_lights_stage(n_lights=50, seed=1, shadow_fraction=1.0, size=10.0)

@@ -312,6 +312,12 @@ def add_parser(sub) -> None:
     p.add_argument("--height", type=int, help="height (with --width; default camera aspect)")
     p.add_argument("--frames", type=int, default=10, help="measured frames (default 10)")
     p.add_argument("--warmup", type=int, default=2, help="warm-up frames (default 2)")
+    p.add_argument(
+        "--max-seconds",
+        type=float,
+        help="wall-time cap per configuration: slow methods (reference at 5,000 lights) "
+        "measure fewer frames, at least one after one warm-up; records say how many",
+    )
     p.add_argument("--camera", help="camera prim path (default: the stage's first camera)")
     p.add_argument("--time", type=float, help="stage time to render (default: start time)")
     p.add_argument("--seed", type=int, default=0, help="render seed of stochastic methods")
@@ -379,6 +385,8 @@ def _run(args: argparse.Namespace) -> int:
     avail = available()
     if args.frames < 1 or args.warmup < 0:
         raise CliError("--frames must be >= 1 and --warmup >= 0")
+    if args.max_seconds is not None and not args.max_seconds > 0:
+        raise CliError("--max-seconds must be > 0")
     methods = parse_methods(
         args.methods or [DEFAULT_METHODS], method_defaults(args, avail), avail
     )
@@ -392,6 +400,7 @@ def _run(args: argparse.Namespace) -> int:
         sizes,
         frames=args.frames,
         warmup=args.warmup,
+        max_seconds=args.max_seconds,
         camera=args.camera,
         time=args.time,
         seed=args.seed,
@@ -421,6 +430,7 @@ def run_bench(
     *,
     frames: int = 10,
     warmup: int = 2,
+    max_seconds: float | None = None,
     camera: str | None = None,
     time: float | None = None,
     seed: int = 0,
@@ -441,9 +451,11 @@ def run_bench(
                     bar.set_description(f"{m.label} {case.label} {size[0]}x{size[1]}")
                     rec = bench_one(
                         stage, case.label, m, size, frames=frames, warmup=warmup,
-                        camera=camera, time=time, seed=seed, on_frame=lambda: bar.update(1),
+                        max_seconds=max_seconds, camera=camera, time=time, seed=seed,
+                        on_frame=lambda: bar.update(1),
                     )
                     records.append(rec)
+                    bar.update(frames + warmup - rec["frames"] - rec["warmup"])  # skipped
                     bar.set_postfix_str(f"{rec['frame_ms']:.1f} ms")
             del stage
     finally:
@@ -459,6 +471,7 @@ def bench_one(
     *,
     frames: int,
     warmup: int,
+    max_seconds: float | None = None,
     camera: str | None = None,
     time: float | None = None,
     seed: int = 0,
@@ -485,7 +498,10 @@ def bench_one(
         raise CliError(f"{method.label} on {scene_label}: {exc}") from None
     try:
         load_before = load_average()
-        m = measure_engine(eng, frames=frames, warmup=warmup, time=time, on_frame=on_frame)
+        m = measure_engine(
+            eng, frames=frames, warmup=warmup, time=time, on_frame=on_frame,
+            max_seconds=max_seconds,
+        )
         scene_lights = int(eng.delegate.light_table.local_mask().sum())
         renderer = eng.renderer_info
     except (RenderError, GLError) as exc:
@@ -501,7 +517,7 @@ def bench_one(
         "scene_lights": scene_lights,
         "width": settings.width,
         "height": int(settings.height or 0),
-        "frames": frames,
+        "frames": len(m.frame),
         "warmup": warmup,
         **m.summary(),
         "stats": m.stats,
@@ -554,6 +570,7 @@ def _bar_label(r: dict[str, Any]) -> str:
 def plot_records(records: list[dict[str, Any]], path: str) -> None:
     """Frame time vs FoV light count per method (and size), and stacked pass bars."""
     import matplotlib
+    import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -576,6 +593,9 @@ def plot_records(records: list[dict[str, Any]], path: str) -> None:
     xs = [r["lights"] for r in records if r["lights"] > 0]
     if xs and max(xs) / max(min(xs), 1) > 20:
         ax1.set_xscale("log")
+    ys = [r["frame_ms"] for r in records if r["frame_ms"] > 0]
+    if ys and max(ys) / min(ys) > 20:
+        ax1.set_yscale("log")
     ax1.set_xlabel("lights in view (FoV-culled)")
     ax1.set_ylabel("frame time (ms, median)")
     ax1.set_title("Frame time vs light count")
@@ -591,7 +611,15 @@ def plot_records(records: list[dict[str, Any]], path: str) -> None:
             continue
         ax2.bar(range(n), vals, bottom=bottoms, color=cmap(i % 20), label=PASS_LABELS.get(k, k))
         bottoms = [b + v for b, v in zip(bottoms, vals)]
-    ax2.set_ylim(0.0, max(bottoms, default=1.0) * 1.08 or 1.0)
+    # Clip the axis when a few bars (the reference at 5,000 lights) dwarf the rest,
+    # and print those bars' totals instead.
+    med = float(np.median(bottoms)) if bottoms else 0.0
+    fits = [b for b in bottoms if b <= 10.0 * med] or bottoms
+    top = max(fits, default=1.0) * 1.15 or 1.0
+    ax2.set_ylim(0.0, top)
+    for i, b in enumerate(bottoms):
+        if b > top:
+            ax2.text(i, top * 0.97, f"{b:,.0f}", rotation=90, ha="center", va="top", fontsize=7)
     ax2.set_xticks(range(n))
     ax2.set_xticklabels([_bar_label(r) for r in records], fontsize=7)
     ax2.set_ylabel("ms (median per pass)")

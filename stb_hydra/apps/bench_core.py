@@ -114,12 +114,17 @@ def measure_engine(
     time: float | None = None,
     readback: bool = False,
     on_frame: Callable[[], None] | None = None,
+    max_seconds: float | None = None,
 ) -> Measurement:
     """Render ``warmup`` + ``frames`` frames at ``time`` and keep the last ``frames``.
 
     ``readback=False`` turns the AOV readback off (a real-time frame has none);
     each frame still ends finished when ``engine.settings.profile`` is on.
-    ``on_frame`` is called after every frame (progress bars).
+    ``on_frame`` is called after every frame (progress bars). ``max_seconds``
+    bounds the wall time of the whole measurement for slow methods: once it is
+    spent, the remaining warm-up frames are skipped and measuring stops, but at
+    least one warm-up frame (when ``warmup`` > 0) and one measured frame always run.
+    ``Measurement.frame`` holds the frames actually measured.
     """
     if frames < 1 or warmup < 0:
         raise ValueError("need frames >= 1 and warmup >= 0")
@@ -129,8 +134,10 @@ def measure_engine(
         saved, aov.requested = aov.requested, set()
     names = [t.name for t in engine.tasks]
     m = Measurement()
+    start = _time.perf_counter()
     try:
-        for i in range(warmup + frames):
+        i = 0
+        while i < warmup + frames:
             t0 = _time.perf_counter()
             frame = engine.render_frame(time)
             wall = (_time.perf_counter() - t0) * 1e3
@@ -146,6 +153,11 @@ def measure_engine(
                 m.frame_stats.append(m.stats)
             if on_frame is not None:
                 on_frame()
+            i += 1
+            if max_seconds is not None and _time.perf_counter() - start >= max_seconds:
+                if i >= warmup + 1:
+                    break  # at least one measured frame is in
+                i = warmup  # skip the rest of the warm-up
     finally:
         if saved is not None:
             aov.requested = saved

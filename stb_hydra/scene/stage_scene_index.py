@@ -75,6 +75,9 @@ class _Entry:
     ds: object = None
     #: Visibility computed during population (consumed by the first read).
     vis_hint: bool | None = None
+    #: Authored property names read during population (consumed by the first
+    #: light read; dropped when a notice touches the prim).
+    names_hint: frozenset[str] | None = None
 
 
 class _DataSource:
@@ -113,8 +116,10 @@ class LightDataSource(_DataSource):
             idx.world_matrix(e),
             visible=self.visible(),
             path=e.path,
+            names=e.names_hint,
         )
         e.vis_hint = None
+        e.names_hint = None
         lp.instance_id = e.instance_id
         return lp
 
@@ -224,6 +229,8 @@ class StageSceneIndex(SceneIndex):
 
     def _update_frame(self) -> None:
         self.render_from_stage = render_from_stage_matrix(self.stage)
+        #: Y-up metre stages need no conversion (skip a 4x4 product per read).
+        self._frame_is_identity = bool(np.array_equal(self.render_from_stage, np.eye(4)))
         self.mpu = float(np.linalg.norm(self.render_from_stage[0, :3]))
         self.light_ctx = LightReadContext(
             self.stage, self.render_from_stage, self._warn, self._warn_once
@@ -268,7 +275,8 @@ class StageSceneIndex(SceneIndex):
             row = int(np.nonzero(exp.instance_ids == e.instance_id)[0][0]) if exp else 0
             m = e.part.local @ exp.instance_xforms[row] @ inst_world
             return m @ self.render_from_stage
-        return _gf_to_np(self.xform_cache.GetLocalToWorldTransform(e.prim)) @ self.render_from_stage
+        m = _gf_to_np(self.xform_cache.GetLocalToWorldTransform(e.prim))
+        return m if self._frame_is_identity else m @ self.render_from_stage
 
     def is_visible(self, e: _Entry) -> bool:
         prim = e.prim
@@ -386,20 +394,26 @@ class StageSceneIndex(SceneIndex):
             parent = path.GetParentPath()
             ptx = tvx_of.get(parent, False)
             ptv = tvv_of.get(parent, False)
-            x = UsdGeom.Xformable(p)
-            own_tvx = bool(x) and x.TransformMightBeTimeVarying()
-            img = UsdGeom.Imageable(p)
+            # One call for the authored names; everything unauthored has its
+            # (constant) fallback, so most prims need no further USD queries.
+            names = frozenset(p.GetAuthoredPropertyNames())
+            own_tvx = False
+            if "xformOpOrder" in names:
+                x = UsdGeom.Xformable(p)
+                own_tvx = bool(x) and x.TransformMightBeTimeVarying()
             own_tvv = False
             vis = vis_of.get(parent, True)
-            if img:
-                va = img.GetVisibilityAttr()
-                own_tvv = va.ValueMightBeTimeVarying()
-                if vis and va.Get(self.time) == UsdGeom.Tokens.invisible:
-                    vis = False
-                purpose = img.GetPurposeAttr().Get()
-                if purpose == UsdGeom.Tokens.guide:
-                    it.PruneChildren()
-                    continue
+            if "visibility" in names or "purpose" in names:
+                img = UsdGeom.Imageable(p)
+                if img:
+                    va = img.GetVisibilityAttr()
+                    own_tvv = va.ValueMightBeTimeVarying()
+                    if vis and va.Get(self.time) == UsdGeom.Tokens.invisible:
+                        vis = False
+                    purpose = img.GetPurposeAttr().Get()
+                    if purpose == UsdGeom.Tokens.guide:
+                        it.PruneChildren()
+                        continue
             tvx_of[path] = ptx or own_tvx
             tvv_of[path] = ptv or own_tvv
             vis_of[path] = vis
@@ -419,7 +433,7 @@ class StageSceneIndex(SceneIndex):
                 self._add_entry(_Entry(lpath, prims.MESH_LIGHT, p), tv, added)
                 self._derived[spath].append(lpath)
                 continue
-            self._add_entry(_Entry(spath, ptype, p, vis_hint=vis), tv, added)
+            self._add_entry(_Entry(spath, ptype, p, vis_hint=vis, names_hint=names), tv, added)
             if ptype == prims.MATERIAL:
                 it.PruneChildren()  # shaders are read through the material
         return added
@@ -433,19 +447,24 @@ class StageSceneIndex(SceneIndex):
         added.append(AddedPrimEntry(e.path, e.prim_type))
 
     def _prim_time_varying(self, p: Usd.Prim, ptype: str, tvx: bool, tvv: bool) -> set[str]:
+        """Locators of ``p`` that vary in time (``tvx``/``tvv``: its transform /
+        visibility varies, own or inherited)."""
         tv: set[str] = set()
         if tvx:
             tv.add(loc.XFORM)
         if tvv:
             tv.add(loc.VISIBILITY)
+        # Ask every authored attribute first and its name only when it varies:
+        # names cost as much as the question, and almost nothing varies.
         for a in p.GetAuthoredAttributes():
+            if not a.ValueMightBeTimeVarying():
+                continue
             name = a.GetName()
             if name.startswith("xformOp") or name == "visibility":
                 continue
-            if a.ValueMightBeTimeVarying():
-                lc = loc.locator_for_attribute(ptype, name)
-                if lc is not None:
-                    tv.add(lc)
+            lc = loc.locator_for_attribute(ptype, name)
+            if lc is not None:
+                tv.add(lc)
         return tv
 
     def _add_instancer(self, p: Usd.Prim, tvx: bool, tvv: bool) -> list[AddedPrimEntry]:
@@ -682,6 +701,10 @@ class StageSceneIndex(SceneIndex):
 
     def _dirty_for_props(self, ppath: str, names: set[str], dirty: dict[str, set[str]]) -> None:
         e = self._entries.get(ppath)
+        for q in (ppath, *self._derived.get(ppath, ())):
+            eq = self._entries.get(q)
+            if eq is not None:
+                eq.names_hint = None  # the authored set may have changed
         prim = self.stage.GetPrimAtPath(ppath)
         # Keep the time-varying table current (an edit may add time samples).
         if e is not None and prim:
