@@ -133,7 +133,7 @@ def main(argv=None) -> int:
     ap.add_argument("--size", default="745x360")
     ap.add_argument("--json")
     ap.add_argument(
-        "--method", default=METHOD, help="lighting method (one that samples local shadows)"
+        "--method", default="stb", help="lighting method (one that samples local shadows)"
     )
     a = ap.parse_args(argv)
     global METHOD

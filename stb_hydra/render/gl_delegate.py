@@ -102,11 +102,20 @@ class GLRenderDelegate(RenderDelegate):
         self._fov_version = -1
         self._fov_uploaded_rows: np.ndarray | None = None
         self._fov_uploaded_maps: np.ndarray | None = None
+        #: The packed records last uploaded (partial updates patch it in place).
+        self._fov_packed: np.ndarray | None = None
+        #: Records written by the last upload (0: none; len(fov_rows): full).
+        self.last_upload_records = 0
         self.ies_texture: moderngl.TextureArray | None = None
         self._ies_version = -1
         self.ies_layer_count = 0
         self.scene_bounds = (np.zeros(3), np.zeros(3))
-        self.stats = {"geometry_uploads": 0, "light_uploads": 0, "instance_uploads": 0}
+        self.stats = {
+            "geometry_uploads": 0,
+            "light_uploads": 0,
+            "light_partial_uploads": 0,
+            "instance_uploads": 0,
+        }
         #: Shadow-map index per FoV light (set by the shadow task), or None.
         self.fov_shadow_maps: np.ndarray | None = None
         #: World bounds per mesh prim, and the bounds static geometry changed in
@@ -349,12 +358,43 @@ class GLRenderDelegate(RenderDelegate):
             and self._fov_uploaded_maps is not None
             and np.array_equal(maps, self._fov_uploaded_maps)
         )
-        changed = not (same_rows and same_maps)
-        if not changed and version != self._fov_version and len(rows):
-            changed = bool(np.any(self.light_table.cols["version"][rows] > self._fov_version))
-        if not changed and self.light_ssbo is not None:
+        changed_rows = (
+            np.nonzero(self.light_table.cols["version"][rows] > self._fov_version)[0]
+            if version != self._fov_version and len(rows)
+            else np.zeros(0, np.int64)
+        )
+        if same_rows and same_maps and not len(changed_rows) and self.light_ssbo is not None:
             self._fov_version = version
+            self.last_upload_records = 0
             return False
+        if (
+            same_rows
+            and self._fov_packed is not None
+            and self.light_ssbo is not None
+            and (maps is None) == (self._fov_uploaded_maps is None)
+        ):
+            # Same culled set: patch the records that changed (new shadow-map
+            # slots, edited lights) and upload their span, not the whole buffer.
+            packed = self._fov_packed
+            moved = (
+                np.zeros(0, np.int64)
+                if maps is None
+                else np.nonzero(maps != self._fov_uploaded_maps)[0]
+            )
+            if len(moved):
+                packed[moved, 26] = maps[moved]
+            if len(changed_rows):
+                sub = None if maps is None else maps[changed_rows]
+                packed[changed_rows] = pack_lights(self.light_table, rows[changed_rows], sub)
+            pos = np.union1d(moved, changed_rows)
+            lo, hi = int(pos[0]), int(pos[-1]) + 1
+            self.light_ssbo.write(packed[lo:hi].tobytes(), offset=lo * LIGHT_STRIDE_BYTES)
+            self._fov_uploaded_maps = None if maps is None else maps.copy()
+            self._fov_version = version
+            self.last_upload_records = hi - lo
+            self.stats["light_uploads"] += 1
+            self.stats["light_partial_uploads"] += 1
+            return True
         packed = pack_lights(self.light_table, rows, maps)
         nbytes = max(packed.nbytes, LIGHT_STRIDE_BYTES)
         if self.light_ssbo is None or self.light_ssbo.size < nbytes:
@@ -363,9 +403,11 @@ class GLRenderDelegate(RenderDelegate):
             self.light_ssbo = self.ctx.buffer(reserve=max(nbytes, 64 * LIGHT_STRIDE_BYTES))
         if packed.nbytes:
             self.light_ssbo.write(packed.tobytes())
+        self._fov_packed = packed
         self._fov_uploaded_rows = rows
         self._fov_uploaded_maps = None if maps is None else maps.copy()
         self._fov_version = version
+        self.last_upload_records = len(rows)
         self.stats["light_uploads"] += 1
         return True
 
