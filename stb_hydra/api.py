@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from pxr import Usd
 
+from . import limits
 from .render.engine import Engine, RenderError
 from .render.frame import RenderSettings
 
@@ -45,6 +46,8 @@ def render(
     """
     fields = set(RenderSettings.__dataclass_fields__)
     extra = {k: v for k, v in options.items() if k in fields}
+    if extra.get("shadow_budget") is None:  # a still: every shadow map captured first
+        extra["shadow_budget"] = limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
     method_options = {k: v for k, v in options.items() if k not in fields}
     settings = RenderSettings(
         width=width,

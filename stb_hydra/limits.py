@@ -120,8 +120,22 @@ SHADOW_MAP_MAX_SIZE = 1024
 #: an omni map SHADOW_OMNI_COST_FACTOR * s^2): 2 Mtexel ~ one 1080p depth pre-pass,
 #: so shadow updates never cost more than the G-buffer's depth fill.
 SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT = 2 * 1024 * 1024
+#: Budget of offline renders (``stb render``, ``stb_hydra.render``) unless one is
+#: given: every pending map is captured before the frame that needs it, so a still
+#: or an animation frame never shows a light unshadowed because the atlas is filling.
+SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE = 1 << 62
 #: Omni capture cost per atlas texel: 6 cube faces of (s/2)^2 = 1.5 s^2 texels.
 SHADOW_OMNI_COST_FACTOR = 1.5
+#: Fixed budget charge per capture render pass (clear, state, draws, the copy), in
+#: texel equivalents. Measured on llvmpipe at 745x360 (docs/PERFORMANCE.md, shadow
+#: atlas): a frame of 443 small omni maps (2.2 Mtexel) took 478 ms against 77 ms for
+#: 6 large ones (2.4 Mtexel), i.e. ~0.9 ms per omni capture (7 passes) against
+#: ~30 ms per Mtexel, ~4k texels per pass. Without the charge a texel budget lets
+#: hundreds of tiny maps through in one frame.
+SHADOW_PASS_OVERHEAD_TEXELS = 4096
+#: Render passes per capture, the copy into the atlas included.
+SHADOW_SPOT_PASSES = 2
+SHADOW_OMNI_PASSES = 7
 
 #: Fraction of the per-frame budget reserved for pending static maps (on top of the
 #: guaranteed first static): a burst of statics (level load) drains at >= 1/4 speed

@@ -140,6 +140,28 @@ def test_budget_overspend_is_less_than_one_map() -> None:
         assert (st.maps_updated, st.texels_rendered) == (len(plan), total)
 
 
+def test_pass_overhead_bounds_many_tiny_maps_per_frame() -> None:
+    """Each render pass is charged a fixed overhead: a flood of tiny omni maps can no
+    longer all fit one frame's texel budget (the hitch it would cause)."""
+    budget, overhead, passes, side = 2 * 1024 * 1024, 4096, 7, 32
+    per_map = round(1.5 * side * side) + passes * overhead
+    plain = ShadowScheduler(ShadowAtlas(4096, 32, 1024), budget_texels=budget)
+    charged = ShadowScheduler(
+        ShadowAtlas(4096, 32, 1024), budget_texels=budget, pass_overhead_texels=overhead
+    )
+    for s in (plain, charged):
+        for i in range(800):
+            s.add_light(i, dynamic=False, transform=0, size=side, cost_factor=1.5, passes=passes)
+    n_plain = len(plain.plan_frame(0))
+    plan = charged.plan_frame(0)
+    assert n_plain == 800  # 800 x 1536 texels < 2 Mi: all in one frame without the charge
+    assert len(plan) == math.ceil(budget / per_map)  # taken while the charge is < budget
+    st = charged.stats()
+    assert st.texels_planned == sum(u.cost for u in plan) == len(plan) * round(1.5 * side**2)
+    with pytest.raises(ValueError):
+        ShadowScheduler(ShadowAtlas(4096, 32, 1024), pass_overhead_texels=-1)
+
+
 def test_zero_budget_still_serves_one_map() -> None:
     s = _sched(0)
     _add(s, "d", dynamic=True)

@@ -17,6 +17,7 @@ import os
 import sys
 import time as _time
 
+from .. import limits
 from .common import EXIT_ERROR, EXIT_OK, CliError, fail, open_stage
 
 
@@ -85,7 +86,13 @@ def add_parser(sub) -> None:
         help="stb: no weight capping (the unbiased mode; same as -o weight_cap=none)",
     )
     p.add_argument("--no-shadows", action="store_true", help="local lights unshadowed")
-    p.add_argument("--shadow-budget", type=int, help="shadow-atlas texels rendered per frame")
+    p.add_argument(
+        "--shadow-budget",
+        type=int,
+        help="shadow-atlas texels rendered per frame, to see a real-time frame "
+        "(default: unlimited, every map captured before each frame; real time uses "
+        f"{limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT})",
+    )
     p.add_argument("--atlas-size", type=int, help="shadow atlas side in texels (power of two)")
     p.add_argument(
         "--shadow-filter",
@@ -174,7 +181,13 @@ def _run(args: argparse.Namespace) -> int:
         ambient=args.ambient,
         profile=bool(args.stats),
         shadows=not args.no_shadows,
-        shadow_budget=args.shadow_budget,
+        # Offline frames are complete: no light waits for its map unless a
+        # real-time budget is asked for.
+        shadow_budget=(
+            args.shadow_budget
+            if args.shadow_budget is not None
+            else limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
+        ),
         shadow_atlas_size=args.atlas_size,
         shadow_filter=args.shadow_filter,
         method_options=options,

@@ -23,9 +23,11 @@ Rules (STB_SPEC "Shadow atlas"):
   most urgent static, even if it alone exceeds the budget. Then more statics are
   taken while the frame's spend is < ``static_reserve * budget``; then statics and
   dynamics compete by urgency while the spend is < budget.
-* Budget: maps are taken while the texels already planned are < budget, so a frame
+* Budget: maps are taken while the cost already planned is < budget, so a frame
   overspends by *less than one map* (the last one taken), never more; a frame with
-  pending work always renders at least one map.
+  pending work always renders at least one map. A map's cost is its texels plus a
+  fixed charge per render pass (``pass_overhead_texels``): without it, hundreds of
+  tiny maps fit a texel budget and their per-pass overhead makes a hitch.
 * Lights out of view are not dropped: their priority is scaled down (policy), so they
   are downgraded first and refreshed last.
 * A map remembers the transform it was captured with (``captured_transform``);
@@ -127,6 +129,7 @@ class _Light:
     seq: int
     dynamic: bool
     cost_factor: float
+    passes: int
     priority: float
     desired: int
     transform: object
@@ -154,9 +157,15 @@ class ShadowScheduler:
         static_reserve: float = SHADOW_STATIC_RESERVE_FRACTION,
         stats_window: int = SHADOW_STATS_WINDOW_FRAMES,
         upgrades_per_frame: int = SHADOW_UPGRADES_PER_FRAME,
+        pass_overhead_texels: int = 0,
     ) -> None:
         if budget_texels < 0 or not 0.0 <= static_reserve <= 1.0:
             raise ValueError("budget_texels must be >= 0 and static_reserve in [0, 1]")
+        if pass_overhead_texels < 0:
+            raise ValueError("pass_overhead_texels must be >= 0")
+        #: Fixed cost of one capture render pass, in texel equivalents, charged on
+        #: top of the texels (limits.SHADOW_PASS_OVERHEAD_TEXELS in the engine).
+        self.pass_overhead_texels = int(pass_overhead_texels)
         self.atlas = atlas if atlas is not None else ShadowAtlas()
         self.budget_texels = int(budget_texels)
         self.static_reserve = float(static_reserve)
@@ -192,11 +201,14 @@ class ShadowScheduler:
         size: int = SHADOW_MAP_MIN_SIZE,
         priority: float = 1.0,
         cost_factor: float = 1.0,
+        passes: int = 1,
     ) -> AtlasRect | None:
         """Register a shadowed light and place its map (dirty "added").
 
         ``cost_factor``: texels rendered per atlas texel (1 spot,
-        ``SHADOW_OMNI_COST_FACTOR`` omni). Returns the rect (None: no room yet).
+        ``SHADOW_OMNI_COST_FACTOR`` omni); ``passes``: render passes per capture
+        (the copy included: 2 spot, 7 omni), each charged ``pass_overhead_texels``.
+        Returns the rect (None: no room yet).
         """
         if key in self._lights:
             raise KeyError(f"shadow light {key!r} already added")
@@ -205,6 +217,7 @@ class ShadowScheduler:
             seq=self._seq,
             dynamic=bool(dynamic),
             cost_factor=float(cost_factor),
+            passes=max(int(passes), 1),
             priority=float(priority),
             desired=self.atlas.clamp_size(size),
             transform=transform,
@@ -359,7 +372,7 @@ class ShadowScheduler:
             if spent >= self.budget_texels and plan:
                 break
             spent += self._take(plan, light, frame)
-        self._planned = (len(plan), spent)
+        self._planned = (len(plan), sum(u.cost for u in plan))  # texels, not charge
         self._last_planned = frame
         self._now = frame + 1
         return plan
@@ -426,6 +439,8 @@ class ShadowScheduler:
         return p * (frame - light.last_served)
 
     def _take(self, plan: list[ShadowUpdate], light: _Light, frame: int) -> int:
+        """Plan one capture; returns what it charges against the budget (its texels
+        plus the fixed per-pass overhead)."""
         rect = light.rect
         assert rect is not None
         cost = round(light.cost_factor * rect.size * rect.size)
@@ -435,7 +450,7 @@ class ShadowScheduler:
                 light.key, rect, reason, cost, light.transform, light.dynamic, frame, light.gen
             )
         )
-        return cost
+        return cost + light.passes * self.pass_overhead_texels
 
     def _dirty(self, light: _Light, reason: str) -> None:
         if light.dirty_since is None:

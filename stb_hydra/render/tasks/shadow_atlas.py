@@ -37,6 +37,7 @@ class ShadowAtlasTask(Task):
         self.scheduler = ShadowScheduler(
             ShadowAtlas(self.atlas_size),
             budget_texels=budget_texels or limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
+            pass_overhead_texels=limits.SHADOW_PASS_OVERHEAD_TEXELS,
         )
         self.capturer: ShadowCapturer | None = None
         #: Tests: plan nothing, so maps keep their last capture.
@@ -143,6 +144,7 @@ class ShadowAtlasTask(Task):
                     dynamic=dyn,
                     transform=c,
                     cost_factor=limits.SHADOW_OMNI_COST_FACTOR if c.omni else 1.0,
+                    passes=limits.SHADOW_OMNI_PASSES if c.omni else limits.SHADOW_SPOT_PASSES,
                 )
                 self._row_of[key] = r
                 self._membership_changed = True
