@@ -2,6 +2,8 @@
 
 * ``room``: 50 shadowed lights in a 10 m room (``gen_lights_scene``), static camera:
   frames until every map is fresh, texels per frame against the budget.
+* ``lights5000``: the ``stb bench`` generator at 5,000 lights (1,278 shadowed): the
+  atlas fill with many small maps; capture time per frame (median / max).
 * ``chess``: 500 shadowed lights over the OpenChessSet (``gen_chess_lights``): same.
 * ``moving``: the room with 20 of its lights animated: static-map staleness
   (frames a dirty map waited: mean / p95 / max) while lights move.
@@ -38,7 +40,9 @@ def _engine(stage, width, height):
     from stb_hydra.render.engine import Engine
     from stb_hydra.render.frame import RenderSettings
 
-    eng = Engine(stage, RenderSettings(width=width, height=height, lighting=METHOD))
+    eng = Engine(
+        stage, RenderSettings(width=width, height=height, lighting=METHOD, profile=True)
+    )
     eng.request_aovs(set())
     eng.aov_output.requested = set()
     return eng
@@ -50,11 +54,14 @@ def run_static(stage, width, height, max_frames=400) -> dict:
     try:
         atlas = eng.task("shadow_atlas")
         texels = []
+        capture_ms = []
         fresh_at = None
         t0 = time.perf_counter()
         for i in range(max_frames):
             f = eng.render_frame()
             texels.append(f.stats.get("shadow_texels_rendered", 0))
+            tm = eng.timings.frames[-1]
+            capture_ms.append(tm.get("prepare.shadow_atlas", 0.0) + tm.get("shadow_atlas", 0.0))
             sch = atlas.scheduler
             keys = list(atlas._row_of)
             if keys and all(sch.is_fresh(k) for k in keys):
@@ -68,6 +75,9 @@ def run_static(stage, width, height, max_frames=400) -> dict:
             "texels_per_frame_mean": float(np.mean(texels)),
             "texels_per_frame_max": int(np.max(texels)),
             "budget_texels": st.budget_texels,
+            # shadow-atlas task wall time per frame (prepare + execute, ctx.finish())
+            "capture_ms_median": round(float(np.median(capture_ms)), 1),
+            "capture_ms_max": round(float(np.max(capture_ms)), 1),
             "occupancy": round(st.atlas.occupancy, 4),
             "fragmentation": round(st.atlas.fragmentation, 4),
             "downgrades": st.atlas.downgrades,
@@ -128,7 +138,7 @@ def run_animated(stage, width, height, frames, t0_code=1.0, t1_code=None) -> dic
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--cases", default="room,chess,moving,orbs")
+    ap.add_argument("--cases", default="room,lights5000,chess,moving,orbs")
     ap.add_argument("--frames", type=int, default=1000, help="frames of the orbs run")
     ap.add_argument("--size", default="745x360")
     ap.add_argument("--json")
@@ -153,6 +163,12 @@ def main(argv=None) -> int:
         st = build_lights_stage(n_lights=50, seed=1, shadow_fraction=1.0, size=10.0)
         out["room_50"] = run_static(st, w, h)
         print("room_50", out["room_50"], flush=True)
+    if "lights5000" in cases:
+        # The stb bench generator at 5,000 lights (1,278 shadowed, ~320 dynamic): the
+        # atlas fill, where many small maps per frame test the per-pass charge.
+        st = build_lights_stage(n_lights=5000, seed=0)
+        out["lights_5000"] = run_static(st, w, h)
+        print("lights_5000", out["lights_5000"], flush=True)
     if "chess" in cases:
         p = tmp / "chess.usda"
         chess_main([str(p), "--lights", "500", "--seed", "1"])
