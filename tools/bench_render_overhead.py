@@ -129,8 +129,8 @@ def print_overhead(r: dict) -> None:
     print(f"  steady ({r['frames'] - r['light_uploads']} of {r['frames']} frames, no light "
           f"upload): sync {r['sync_ms']:.3f}  commit {r['commit_ms']:.3f}  prepare "
           f"{r['prepare_ms']:.3f}  (cull {r['cull_ms']:.3f}, upload check {up})")
-    print(f"  cull + upload: steady {r['cull_upload_ms']:.3f}, frames with a full light-buffer "
-          f"upload ({r['light_uploads']}): " + ("-" if full is None else f"{full:.3f}")
+    print(f"  cull + upload: steady {r['cull_upload_ms']:.3f}, frames that upload light "
+          f"records ({r['light_uploads']}): " + ("-" if full is None else f"{full:.3f}")
           + f" (target <= {CULL_UPLOAD_TARGET_MS:g}: {'ok' if r['target_met'] else 'MISSED'})")
     print(f"  whole CPU part of the frame {r['cpu_frame_ms']:.3f} ms; load {r['load_avg']}")
     subs = sorted(((k, v) for k, v in r["timings"].items() if k.startswith("prepare.")),
