@@ -70,3 +70,57 @@ def usda_stage(text: str) -> Usd.Stage:
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.ImportFromString(text)
     return Usd.Stage.Open(layer)
+
+
+# --- inline .usda pieces shared by the GL tests ------------------------------------------
+
+USDA_HEADER = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Y"
+)
+"""
+
+
+def camera_usda(
+    translate: tuple[float, float, float],
+    rotate_x: float,
+    *,
+    clipping: tuple[float, float] | None = None,
+    ortho: bool = False,
+) -> str:
+    """``/Cam``: 18 mm lens on a 36 x 20.25 mm aperture (16:9), or an orthographic
+    200 x 112.5 view; placed at ``translate`` and pitched by ``rotate_x`` degrees."""
+    lens = (
+        '    token projection = "orthographic"\n'
+        "    float horizontalAperture = 200\n    float verticalAperture = 112.5\n"
+        if ortho
+        else "    float focalLength = 18\n"
+        "    float horizontalAperture = 36\n    float verticalAperture = 20.25\n"
+    )
+    clip = f"    float2 clippingRange = ({clipping[0]:g}, {clipping[1]:g})\n" if clipping else ""
+    x, y, z = translate
+    return (
+        'def Camera "Cam"\n{\n' + lens + clip
+        + f"    double3 xformOp:translate = ({x:g}, {y:g}, {z:g})\n"
+        f"    float xformOp:rotateX = {rotate_x:g}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+    )
+
+
+def ground_usda(half: float = 20.0) -> str:
+    """``/Ground``: a grey 2*half metre square quad at y = 0."""
+    h = f"{half:g}"
+    return (
+        'def Mesh "Ground"\n{\n'
+        "    int[] faceVertexCounts = [4]\n    int[] faceVertexIndices = [0, 1, 2, 3]\n"
+        f"    point3f[] points = [(-{h}, 0, -{h}), (-{h}, 0, {h}), ({h}, 0, {h}), ({h}, 0, -{h})]\n"
+        "    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]\n}\n"
+    )
+
+
+BOX_USDA = (
+    'def Cube "Box"\n{\n    double size = 2\n    double3 xformOp:translate = (0, 1, 0)\n'
+    '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+)
+"""``/Box``: a 2 m cube standing on the ground at the origin."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stagegen import usda_stage
+from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.render.engine import Engine
 from stb_hydra.render.frame import RenderSettings
@@ -15,12 +15,6 @@ from stb_hydra.render.lighting import available
 W, H = 192, 108
 TOL = 1e-4
 
-HEADER = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-"""
 
 
 def relmse(a, b, eps=1e-2):
@@ -31,35 +25,11 @@ def small_lights_scene(n: int, seed: int = 3, ortho: bool = False, spread: float
     """Ground + box + n lights with short authored ranges (0.6-3 m) 0.2-2 m above the
     ground, a third of them spots: culling matters (lists are far shorter than n)."""
     rng = np.random.default_rng(seed)
-    cam = (
-        'def Camera "Cam"\n{\n    token projection = "orthographic"\n'
-        "    float horizontalAperture = 200\n    float verticalAperture = 112.5\n"
-        if ortho
-        else 'def Camera "Cam"\n{\n    float focalLength = 18\n'
-        "    float horizontalAperture = 36\n    float verticalAperture = 20.25\n"
-    )
     s = [
-        HEADER,
-        cam
-        + """    float2 clippingRange = (0.1, 200)
-    double3 xformOp:translate = (0, 9, 9)
-    float xformOp:rotateX = -45
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-30, 0, -30), (-30, 0, 30), (30, 0, 30), (30, 0, -30)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
-def Cube "Box"
-{
-    double size = 2
-    double3 xformOp:translate = (0, 1, 0)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}
-""",
+        USDA_HEADER
+        + camera_usda((0, 9, 9), -45, clipping=(0.1, 200), ortho=ortho)
+        + ground_usda(30)
+        + BOX_USDA
     ]
     for i in range(n):
         p = rng.uniform([-spread, 0.2, -spread], [spread, 2.0, spread])

@@ -9,7 +9,7 @@ import sys
 
 import numpy as np
 import pytest
-from stagegen import usda_stage
+from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.io.images import read_image
 from stb_hydra.render.engine import Engine
@@ -34,36 +34,7 @@ def scene_text(n: int = 14, seed: int = 3) -> str:
     """Ground + box, ``n`` sphere lights with authored ranges 1.5-5 m (so counts vary
     over the image), camera looking down at 45 degrees."""
     rng = np.random.default_rng(seed)
-    s = [
-        """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    double3 xformOp:translate = (0, 7, 7)
-    float xformOp:rotateX = -45
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
-def Cube "Box"
-{
-    double size = 2
-    double3 xformOp:translate = (0, 1, 0)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}
-"""
-    ]
+    s = [USDA_HEADER + camera_usda((0, 7, 7), -45) + ground_usda(20) + BOX_USDA]
     for i in range(n):
         p = rng.uniform([-6, 0.4, -6], [6, 2.5, 4])
         s.append(

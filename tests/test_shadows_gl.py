@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom
-from stagegen import usda_stage
+from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.render.engine import Engine
 from stb_hydra.render.frame import RenderSettings
@@ -16,29 +16,7 @@ from stb_hydra.render.gl import preprocess
 
 W, H = 192, 108
 
-HEADER = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.1, 100)
-    double3 xformOp:translate = (0, 7, 5)
-    float xformOp:rotateX = -55
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-30, 0, -30), (-30, 0, 30), (30, 0, 30), (30, 0, -30)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
-"""
+HEADER = USDA_HEADER + camera_usda((0, 7, 5), -55, clipping=(0.1, 100)) + ground_usda(30)
 
 
 def ground_points(stage) -> np.ndarray:

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from stagegen import usda_stage
+from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 import stb_hydra
 from stb_hydra import limits
@@ -17,43 +17,14 @@ from stb_hydra.render.frame import RenderSettings
 from stb_hydra.render.gl import preprocess
 from stb_hydra.render.lighting.stb import SLOT_BLOCKS, decode_samples, encode_samples
 
-HEADER = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-"""
-
 
 def lights_scene(n: int, seed: int = 1, cube: bool = True, cones: bool = False) -> str:
     """Ground plane (+ a cube occluder), n sphere lights 0.5..3 m above it,
     camera 45 degrees down."""
     rng = np.random.default_rng(seed)
-    s = [
-        HEADER,
-        """def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    double3 xformOp:translate = (0, 8, 8)
-    float xformOp:rotateX = -45
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
-""",
-    ]
+    s = [USDA_HEADER + camera_usda((0, 8, 8), -45) + ground_usda(20)]
     if cube:
-        s.append(
-            'def Cube "Box"\n{\n    double size = 2\n    double3 xformOp:translate = (0, 1, 0)\n'
-            '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
-        )
+        s.append(BOX_USDA)
     for i in range(n):
         p = rng.uniform([-6, 0.5, -6], [6, 3, 6])
         c = rng.uniform(0.3, 1.0, 3)
@@ -170,7 +141,7 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
         f'    uniform token[] xformOpOrder = ["xformOp:translate"]\n}}\n'
         for i in range(n)
     )
-    stage = usda_stage(HEADER + FACING + lights)
+    stage = usda_stage(USDA_HEADER + FACING + lights)
     eng = stb_engine(stage, 128, 128, K=K, N=1)
     try:
         counts = np.zeros(n)
@@ -360,7 +331,7 @@ def test_deterministic_same_seed_same_image(gl_ctx):
 
 def test_no_local_lights_runs_the_sun_only_path(gl_ctx):
     stage = usda_stage(
-        HEADER
+        USDA_HEADER
         + FACING
         + 'def DistantLight "Sun"\n{\n    float inputs:intensity = 1000\n'
         + "    bool inputs:normalize = 1\n}\n"
