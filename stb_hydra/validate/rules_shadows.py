@@ -18,21 +18,24 @@ from pxr import Usd
 
 from .. import limits
 from ..scene import prims
+from ..shadows import policy
 from .analysis import LightRecord, analysis_for
 from .common import finding
 from .findings import Finding
 
 
 def map_side(range_m: float, flux_lm: float) -> int:
-    """Estimated shadow-map side (texels) at the reference view."""
-    d = max(limits.VALIDATE_SHADOW_REFERENCE_DISTANCE_M, range_m, 1e-6)
-    half = math.tan(math.radians(limits.VALIDATE_SHADOW_REFERENCE_FOV_DEG) / 2.0)
-    diameter = limits.VALIDATE_SHADOW_REFERENCE_HEIGHT_PX * max(range_m, 0.0) / (d * half)
-    lo, hi = limits.SHADOW_FLUX_SCALE_RANGE
-    scale = min(max(math.sqrt(max(flux_lm, 0.0) / limits.SHADOW_REFERENCE_FLUX_LM), lo), hi)
-    t = min(max(diameter * limits.SHADOW_TEXELS_PER_PIXEL * scale, limits.SHADOW_MAP_MIN_SIZE),
-            limits.SHADOW_MAP_MAX_SIZE)
-    return int(2 ** math.floor(math.log2(t) + 0.5))
+    """Estimated shadow-map side (texels) at the reference view: the engine's own
+    resolution policy for a light seen from the reference distance, no map yet."""
+    side = policy.choose_resolutions(
+        [limits.VALIDATE_SHADOW_REFERENCE_DISTANCE_M],
+        [flux_lm],
+        [range_m],
+        limits.VALIDATE_SHADOW_REFERENCE_HEIGHT_PX,
+        math.radians(limits.VALIDATE_SHADOW_REFERENCE_FOV_DEG),
+        [0],
+    )
+    return int(side[0])
 
 
 def _names(recs: list[LightRecord], n: int = 3) -> str:
