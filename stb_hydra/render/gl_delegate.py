@@ -353,10 +353,15 @@ class GLRenderDelegate(RenderDelegate):
         same_rows = self._fov_uploaded_rows is not None and np.array_equal(
             rows, self._fov_uploaded_rows
         )
-        same_maps = (maps is None and self._fov_uploaded_maps is None) or (
-            maps is not None
-            and self._fov_uploaded_maps is not None
-            and np.array_equal(maps, self._fov_uploaded_maps)
+        prev_maps = self._fov_uploaded_maps
+        # FoV positions whose map slot changed (comparable only for the same rows).
+        moved = (
+            np.nonzero(maps != prev_maps)[0]
+            if same_rows and maps is not None and prev_maps is not None
+            else np.zeros(0, np.int64)
+        )
+        same_maps = (maps is None and prev_maps is None) or (
+            same_rows and maps is not None and prev_maps is not None and not len(moved)
         )
         changed_rows = (
             np.nonzero(self.light_table.cols["version"][rows] > self._fov_version)[0]
@@ -371,16 +376,11 @@ class GLRenderDelegate(RenderDelegate):
             same_rows
             and self._fov_packed is not None
             and self.light_ssbo is not None
-            and (maps is None) == (self._fov_uploaded_maps is None)
+            and (maps is None) == (prev_maps is None)
         ):
             # Same culled set: patch the records that changed (new shadow-map
             # slots, edited lights) and upload their span, not the whole buffer.
             packed = self._fov_packed
-            moved = (
-                np.zeros(0, np.int64)
-                if maps is None
-                else np.nonzero(maps != self._fov_uploaded_maps)[0]
-            )
             if len(moved):
                 packed[moved, 26] = maps[moved]
             if len(changed_rows):

@@ -193,11 +193,6 @@ def _row_norm(m: np.ndarray, i: int) -> float:
     return math.hypot(float(m[i, 0]), float(m[i, 1]), float(m[i, 2]))
 
 
-def _normalized(v: np.ndarray, fallback: np.ndarray) -> np.ndarray:
-    n = math.hypot(float(v[0]), float(v[1]), float(v[2]))
-    return v / n if n > 1e-12 and math.isfinite(n) else fallback
-
-
 # --- IES ------------------------------------------------------------------------------
 
 
