@@ -19,14 +19,13 @@ register_schema()
 
 
 def __getattr__(name: str):
-    # Lazy so `import stb_hydra` stays cheap (no GL, no OCIO) for scene-only users.
-    # `stb_hydra.render` resolves to the render package, which is callable and
-    # forwards to `stb_hydra.api.render` (see stb_hydra/render/__init__.py).
-    if name == "render":
-        import importlib
+    # Lazy so `import stb_hydra` stays cheap (no GL, no OCIO) for scene-only users:
+    # `stb_hydra.render` is the plain function `stb_hydra.api.render`.
+    if name in ("render", "Engine", "RenderSettings", "RenderError"):
+        from . import api
 
-        return importlib.import_module(".render", __name__)
-    raise AttributeError(name)
+        return getattr(api, name)
+    raise AttributeError(f"module 'stb_hydra' has no attribute '{name}'")
 
 
-__all__ = ["__version__", "render"]
+__all__ = ["Engine", "RenderError", "RenderSettings", "__version__", "render"]

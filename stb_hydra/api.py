@@ -16,8 +16,8 @@ import numpy as np
 from pxr import Usd
 
 from . import limits
-from .render.engine import Engine, RenderError
-from .render.frame import RenderSettings
+from .renderer.engine import Engine, RenderError
+from .renderer.frame import RenderSettings
 
 __all__ = ["Engine", "RenderError", "RenderSettings", "render"]
 

@@ -31,6 +31,6 @@ def repo() -> Path:
 def gl_ctx():
     """The process-wide OpenGL 4.3+ context (EGL: llvmpipe here, NVIDIA on GPU hosts).
     One context per process: the engine and every GL test share it."""
-    from stb_hydra.render.gl import get_context
+    from stb_hydra.renderer.gl import get_context
 
     return get_context()

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
-from stb_hydra.render.engine import Engine
-from stb_hydra.render.frame import RenderSettings
-from stb_hydra.render.lighting import available
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.lighting import available
 
 W, H = 192, 108
 TOL = 1e-4

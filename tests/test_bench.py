@@ -13,7 +13,7 @@ from stb_hydra.apps import bench
 from stb_hydra.apps.bench_core import measure_engine, median_dict, split_frame_timings
 from stb_hydra.apps.cli import main as cli_main
 from stb_hydra.apps.common import CliError
-from stb_hydra.render.lighting import available
+from stb_hydra.renderer.lighting import available
 
 AVAIL = available()
 

@@ -12,10 +12,10 @@ import pytest
 from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.io.images import read_image
-from stb_hydra.render.engine import Engine
-from stb_hydra.render.frame import RenderSettings
-from stb_hydra.render.lighting.stb import SLOT_BLOCKS, decode_samples
-from stb_hydra.render.tasks.aov_output import (
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples
+from stb_hydra.renderer.tasks.aov_output import (
     DEBUG_AOVS,
     STB_DEBUG_AOVS,
     check_debug_aovs,

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stb_hydra.render.engine import Engine
-from stb_hydra.render.frame import RenderSettings
-from stb_hydra.render.light_buffer import LIGHT_STRIDE_FLOATS, pack_lights
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.light_buffer import LIGHT_STRIDE_FLOATS, pack_lights
 
 pytestmark = pytest.mark.gl
 

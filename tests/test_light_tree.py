@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stb_hydra import limits
-from stb_hydra.render.lighting.light_tree_build import (
+from stb_hydra.renderer.lighting.light_tree_build import (
     CellLists,
     ClusterGrid,
     ViewParams,

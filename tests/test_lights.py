@@ -9,8 +9,8 @@ import pytest
 from stagegen import usda_stage
 
 from stb_hydra import limits
-from stb_hydra.render.delegate import RenderDelegate
-from stb_hydra.render.render_index import RenderIndex
+from stb_hydra.renderer.delegate import RenderDelegate
+from stb_hydra.renderer.render_index import RenderIndex
 from stb_hydra.scene.stage_scene_index import StageSceneIndex
 
 HEADER = """#usda 1.0

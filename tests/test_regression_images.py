@@ -73,7 +73,7 @@ def test_pixels_match_regression_data(case: Case, gl_ctx, testdata) -> None:
 
     ref, _ = read_image(DATA / f"{case.name}.exr")
     img = render_case(case)
-    assert img.shape == ref.shape[:2] + (3,)
+    assert img.shape == (*ref.shape[:2], 3)
     assert np.all(np.isfinite(img))
     if case.lighting != "sun":  # sun-only on a stage without a sun is black by design
         assert float(ref.max()) > 0.0, "regression image is black: the data is broken"

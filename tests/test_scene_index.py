@@ -7,8 +7,8 @@ import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdLux
 from stagegen import many_lights_stage, usda_stage
 
-from stb_hydra.render.delegate import RenderDelegate
-from stb_hydra.render.render_index import RenderIndex
+from stb_hydra.renderer.delegate import RenderDelegate
+from stb_hydra.renderer.render_index import RenderIndex
 from stb_hydra.scene.locators import DirtyBits as D
 from stb_hydra.scene.stage_scene_index import StageSceneIndex
 

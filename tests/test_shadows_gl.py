@@ -10,9 +10,9 @@ import pytest
 from pxr import Gf, Usd, UsdGeom
 from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
 
-from stb_hydra.render.engine import Engine
-from stb_hydra.render.frame import RenderSettings
-from stb_hydra.render.gl import preprocess
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.gl import preprocess
 
 W, H = 192, 108
 

@@ -12,10 +12,10 @@ from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 import stb_hydra
 from stb_hydra import limits
-from stb_hydra.render.engine import Engine
-from stb_hydra.render.frame import RenderSettings
-from stb_hydra.render.gl import preprocess
-from stb_hydra.render.lighting.stb import SLOT_BLOCKS, decode_samples, encode_samples
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.gl import preprocess
+from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples, encode_samples
 
 
 def lights_scene(n: int, seed: int = 1, cube: bool = True, cones: bool = False) -> str:

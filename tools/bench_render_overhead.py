@@ -42,8 +42,8 @@ def _size(text: str) -> tuple[int, int]:
 
 
 def _engine(stage, method: str, size: tuple[int, int]):
-    from stb_hydra.render.engine import Engine
-    from stb_hydra.render.frame import RenderSettings
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
 
     return Engine(
         stage, RenderSettings(width=size[0], height=size[1], lighting=method, profile=True)

@@ -53,8 +53,8 @@ def first_sync(path: Path) -> tuple[dict[str, float], object, object, object]:
     from pxr import Usd
 
     import stb_hydra  # noqa: F401  (schema registration before the stage opens)
-    from stb_hydra.render.delegate import RenderDelegate
-    from stb_hydra.render.render_index import RenderIndex
+    from stb_hydra.renderer.delegate import RenderDelegate
+    from stb_hydra.renderer.render_index import RenderIndex
     from stb_hydra.scene.stage_scene_index import StageSceneIndex
 
     t0 = time.perf_counter()

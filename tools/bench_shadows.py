@@ -37,8 +37,8 @@ METHOD = "stb"
 
 
 def _engine(stage, width, height):
-    from stb_hydra.render.engine import Engine
-    from stb_hydra.render.frame import RenderSettings
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
 
     eng = Engine(
         stage, RenderSettings(width=width, height=height, lighting=METHOD, profile=True)

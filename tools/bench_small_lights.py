@@ -45,8 +45,8 @@ def main(argv=None) -> int:
 
     import stb_hydra  # noqa: F401
     from stb_hydra.metrics import relmse
-    from stb_hydra.render.engine import Engine
-    from stb_hydra.render.frame import RenderSettings
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
     from tools.gen_lights_scene import build_lights_stage
 
     w, h = (int(x) for x in a.size.split("x"))

@@ -266,7 +266,7 @@ def _builder(kind: str, n: int, kwargs: dict[str, Any]) -> Callable[[], Any]:
 
 
 def add_parser(sub) -> None:
-    from ..render.lighting import available
+    from ..renderer.lighting import available
 
     p = sub.add_parser(
         "bench",
@@ -368,7 +368,7 @@ def _output_paths(args: argparse.Namespace) -> tuple[str | None, str | None, str
 
 def _check_method_options(methods: list[MethodSpec]) -> None:
     """Reject bad options before any scene is built (methods validate in __init__)."""
-    from ..render.lighting import method_class
+    from ..renderer.lighting import method_class
 
     for m in methods:
         try:
@@ -380,7 +380,7 @@ def _check_method_options(methods: list[MethodSpec]) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..render.lighting import available
+    from ..renderer.lighting import available
 
     avail = available()
     if args.frames < 1 or args.warmup < 0:
@@ -478,9 +478,9 @@ def bench_one(
     on_frame: Callable[[], None] | None = None,
 ) -> dict[str, Any]:
     """Measure one configuration on ``stage``; the engine is always released."""
-    from ..render.engine import Engine, RenderError
-    from ..render.frame import RenderSettings
-    from ..render.gl import GLError
+    from ..renderer.engine import Engine, RenderError
+    from ..renderer.frame import RenderSettings
+    from ..renderer.gl import GLError
     from .bench_core import load_average, measure_engine
 
     settings = RenderSettings(

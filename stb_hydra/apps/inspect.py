@@ -24,8 +24,8 @@ def _num(x: float) -> float | None:
 
 def inspect_stage(stage, time: float | None = None) -> dict:
     """The ``stb inspect`` report as a JSON-ready dict (schema in the README)."""
-    from ..render.delegate import RenderDelegate
-    from ..render.render_index import RenderIndex
+    from ..renderer.delegate import RenderDelegate
+    from ..renderer.render_index import RenderIndex
     from ..scene import prims
     from ..scene.stage_scene_index import StageSceneIndex
 

@@ -41,7 +41,7 @@ def parse_frames(spec: str) -> list[float]:
 
 
 def add_parser(sub) -> None:
-    from ..render.lighting import available
+    from ..renderer.lighting import available
 
     p = sub.add_parser("render", help="render a USD stage to image files (like usdrecord)")
     p.add_argument("scene", help="USD file")
@@ -125,7 +125,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.accumulate < 1:
         raise CliError("--accumulate must be >= 1")
     aovs = [a.strip() for a in args.aov.split(",") if a.strip()]
-    from ..render.tasks.aov_output import DEBUG_AOVS, check_debug_aovs
+    from ..renderer.tasks.aov_output import DEBUG_AOVS, check_debug_aovs
 
     known = ("color", "depth", "normal", "albedo", *DEBUG_AOVS)
     unknown = sorted(set(aovs) - set(known))
@@ -155,9 +155,9 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
 
-    from ..render.engine import Engine, RenderError
-    from ..render.frame import RenderSettings
-    from ..render.gl import GLError
+    from ..renderer.engine import Engine, RenderError
+    from ..renderer.frame import RenderSettings
+    from ..renderer.gl import GLError
     from .bench import parse_options
 
     options: dict = {}
@@ -277,7 +277,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write_outputs(eng, out, aovs, ext, pipeline, meta) -> None:
     from ..io.images import write_aov, write_image
-    from ..render.tasks.aov_output import DEBUG_AOVS, write_debug_aov
+    from ..renderer.tasks.aov_output import DEBUG_AOVS, write_debug_aov
 
     res = eng.aovs
     if ext == ".exr":

@@ -173,7 +173,7 @@ class Run:
 
 
 def _settings(args, method: str, options: dict):
-    from ..render.frame import RenderSettings
+    from ..renderer.frame import RenderSettings
 
     s = RenderSettings(
         width=args.width, height=args.height, camera=args.camera, lighting=method,
@@ -194,7 +194,7 @@ class EnginePool:
         self.stage, self.args, self.eng = stage, args, None
 
     def get(self, unit: Unit):
-        from ..render.engine import Engine
+        from ..renderer.engine import Engine
 
         if self.eng is not None and self._swap(unit):
             return self.eng
@@ -204,7 +204,7 @@ class EnginePool:
         return self.eng
 
     def _swap(self, unit: Unit) -> bool:
-        from ..render.lighting import method_class
+        from ..renderer.lighting import method_class
 
         eng = self.eng
         task = eng.task("lighting")
@@ -522,7 +522,7 @@ def _load() -> str:
 def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
     from tqdm import tqdm
 
-    from ..render.gl import get_context, renderer_info
+    from ..renderer.gl import get_context, renderer_info
 
     stage, name = open_scene(args.scene, args.seed)
     out = Path(args.out or Path("out") / "tradeoff" / name)
@@ -607,7 +607,7 @@ def run_sweep(args) -> list[dict]:
     from tqdm import tqdm
 
     from ..metrics import display_referred, flip_ldr, relmse
-    from ..render.gl import get_context, renderer_info
+    from ..renderer.gl import get_context, renderer_info
 
     kind = args.scene if args.scene in ("lights", "chess") else "lights"
     counts = [int(x) for x in args.sweep_lights.split(",") if x.strip()]
@@ -712,7 +712,7 @@ def plot_sweep(rows: list[dict], path: Path, title: str) -> None:
 
 
 def _tile_caps(s: str) -> tuple:
-    from ..render.lighting.tiled import parse_cap
+    from ..renderer.lighting.tiled import parse_cap
 
     try:
         caps = tuple(parse_cap(x) for x in s.split(",") if x.strip())
@@ -776,8 +776,8 @@ def main(args: argparse.Namespace) -> int:
             raise CliError("--width and --height must be positive")
         if args.frames < 1 or args.warmup < 0 or args.eps <= 0:
             raise CliError("need --frames >= 1, --warmup >= 0, --eps > 0")
-        from ..render.engine import RenderError
-        from ..render.gl import GLError
+        from ..renderer.engine import RenderError
+        from ..renderer.gl import GLError
 
         try:
             if args.report_only:

@@ -21,8 +21,8 @@ import moderngl
 import numpy as np
 
 from .. import limits
-from ..render.camera import look_at, perspective
-from ..render.gl import set_uniform, shader_library
+from ..renderer.camera import look_at, perspective
+from ..renderer.gl import set_uniform, shader_library
 from .atlas import AtlasRect
 
 #: Widest cone captured with one perspective map; wider cones use an octahedral map.

@@ -92,8 +92,8 @@ def prefab_of(prim: Usd.Prim, stop: Sdf.Path | None = None) -> str | None:
 
 def build_analysis(stage: Usd.Stage) -> StageAnalysis:
     """Extract lights and meshes of ``stage`` at its start time (see module doc)."""
-    from ..render.delegate import RenderDelegate
-    from ..render.render_index import RenderIndex
+    from ..renderer.delegate import RenderDelegate
+    from ..renderer.render_index import RenderIndex
     from ..scene.stage_scene_index import StageSceneIndex
 
     si = StageSceneIndex(stage)
