@@ -24,7 +24,7 @@ def _expected(d) -> np.ndarray:
 
 
 def test_partial_uploads_keep_the_buffer_equal_to_a_full_pack(gl_ctx):
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     stage = build_lights_stage(n_lights=40, seed=3, shadow_fraction=1.0, size=10.0)
     # A tiny capture budget: one map per frame, so slots appear frame by frame.

@@ -1,4 +1,4 @@
-"""The project's USD scenes (usd_scenes/) and scene generators (tools/gen_*.py).
+"""The project's USD scenes (usd_scenes/) and scene generators (stb_hydra.scenegen).
 
 Checks composition (every layer and asset path, IES files included, resolves),
 the default scene's light inventory, the prefabs' photometry, IES file structure
@@ -23,7 +23,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux, UsdShade, UsdUtils
 import stb_hydra  # noqa: F401  (registers StbLightAPI / StbGeometryAPI before stages open)
 
 REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:  # `tools` is a package at the repo root, not installed
+if str(REPO) not in sys.path:  # `tools` (prefab / IES writers) is not installed
     sys.path.insert(0, str(REPO))
 SCENES = REPO / "usd_scenes"
 USDA_FILES = sorted(SCENES.rglob("*.usda"))
@@ -430,7 +430,7 @@ def test_generator_cli_help(tool: str):
 
 @pytest.mark.parametrize("n", [50, 10_000])
 def test_gen_lights_counts_and_speed(n: int):
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     m = max(3, n // 100)
     t = time.perf_counter()
@@ -462,7 +462,7 @@ def test_gen_lights_counts_and_speed(n: int):
 
 
 def test_gen_lights_deterministic(tmp_path: Path):
-    from tools import gen_lights_scene
+    from stb_hydra.scenegen import lights as gen_lights_scene
 
     a = gen_lights_scene.lights_scene_usda(500, seed=11, animated=20)
     b = gen_lights_scene.lights_scene_usda(500, seed=11, animated=20)
@@ -482,7 +482,7 @@ def test_gen_lights_deterministic(tmp_path: Path):
 
 
 def test_gen_lights_usdc(tmp_path: Path):
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     stage = build_lights_stage(n_lights=50, seed=1, animated=5, path=tmp_path / "l.usdc")
     assert stage.GetRootLayer().GetFileFormat().formatId == "usdc"
@@ -492,7 +492,7 @@ def test_gen_lights_usdc(tmp_path: Path):
 
 @pytest.mark.parametrize("n", [50, 10_000])
 def test_gen_chess_lights(tmp_path: Path, n: int):
-    from tools import gen_chess_lights
+    from stb_hydra.scenegen import chess as gen_chess_lights
 
     out = tmp_path / "chess" / f"chess_{n}.usda"
     t = time.perf_counter()
@@ -517,7 +517,7 @@ def test_gen_chess_lights(tmp_path: Path, n: int):
     assert 0.001 <= min(radii) and max(radii) <= 0.03
     assert all(UsdLux.ShadowAPI(p).GetShadowEnableAttr().Get() for p in lights[:200])
     # no light inside a piece
-    pieces, _top = gen_chess_lights.piece_bounds(gen_chess_lights.CHESS_SET)
+    pieces, _top = gen_chess_lights.piece_bounds(gen_chess_lights.chess_set())
     inside = np.zeros(len(pos), bool)
     for b in pieces:
         inside |= np.all((pos > b[:3]) & (pos < b[3:]), axis=1)
@@ -534,7 +534,7 @@ def test_gen_chess_lights(tmp_path: Path, n: int):
 
 @pytest.mark.parametrize("n", [50, 200])
 def test_gen_orbs_spawn_over_time(tmp_path: Path, n: int):
-    from tools import gen_orbs
+    from stb_hydra.scenegen import orbs as gen_orbs
 
     out = tmp_path / "orbs.usda"
     t = time.perf_counter()

@@ -391,7 +391,7 @@ def test_offline_render_captures_every_map_before_its_first_frame(gl_ctx):
     single frame equals a real-time engine's image once all maps are fresh, while
     the real-time engine's first frame still has lights waiting for their maps."""
     import stb_hydra
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     # 150 omni maps: more than one real-time frame of budget (pass overhead included).
     stage = build_lights_stage(n_lights=150, seed=5, shadow_fraction=1.0, size=10.0)

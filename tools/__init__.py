@@ -1,5 +1,7 @@
-"""Developer tools: scene generators, IES profile writer, benchmarks (not CLI verbs).
+"""Developer tools of the source checkout: prefab / IES writers, benchmarks (not CLI verbs).
 
-Importable as a package so tests and benchmarks can call the generators in-process,
-e.g. ``from tools.gen_lights_scene import build_lights_stage``.
+The scene generators live in the package (:mod:`stb_hydra.scenegen`); the
+``gen_*.py`` scripts here are thin command-line wrappers around them. Importable as a
+package so tests can call the checkout-only writers in-process, e.g.
+``from tools import gen_prefab_library``.
 """

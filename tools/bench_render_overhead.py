@@ -2,7 +2,7 @@
 """Benchmark the renderer's per-frame CPU overhead and per-task wall times.
 
 1. CPU overhead with ``--lights`` (10,000) lights, scene unchanged between frames
-   (``tools/gen_lights_scene.py``, no animation): medians over
+   (``stb_hydra.scenegen.lights``, no animation): medians over
    ``--overhead-frames`` (30) frames after ``--warmup`` of the engine's CPU
    phases -- ``sync``, ``commit``, ``prepare``, ``prepare.light_cull`` (frustum
    culling) and ``commit.lights`` (light buffer upload, where the engine has it)
@@ -30,9 +30,6 @@ import json
 import sys
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 CULL_UPLOAD_TARGET_MS = 2.0
 
 
@@ -55,7 +52,7 @@ def overhead(args) -> dict:
     the light buffer (the shadow atlas assigning maps during the first frames) are
     reported apart from the steady state."""
     from stb_hydra.apps.bench_core import load_average, measure_engine, median, median_dict
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     stage = build_lights_stage(n_lights=args.lights, seed=args.seed, animated=0)
     eng = _engine(stage, args.overhead_method, _size(args.overhead_size))
@@ -100,7 +97,7 @@ def overhead(args) -> dict:
 def task_times(args) -> list[dict]:
     """Part 2: per-task medians for each method x light count."""
     from stb_hydra.apps.bench_core import load_average, measure_engine
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     out = []
     size = _size(args.size)

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Benchmark the scene index + render index (CPU, no GL) on many-light stages.
 
-For each light count (default 10,000 and 100,000; ``tools/gen_lights_scene.py``
+For each light count (default 10,000 and 100,000; ``stb_hydra.scenegen.lights``
 scenes with 100 animated lights, written to a temp .usda first -- generation is
 not timed):
 
@@ -32,9 +32,6 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 TARGETS_10K_MS = {"open_first_sync": 3000.0, "edit_intensity": 5.0, "edit_move": 5.0,
                   "set_time": 5.0}
@@ -121,7 +118,7 @@ def set_time_sync(si, ri, frames: int, animated: int) -> dict[str, float]:
 
 
 def bench_count(n: int, tmp: Path, args) -> dict:
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     path = tmp / f"lights_{n}.usda"
     t0 = time.perf_counter()

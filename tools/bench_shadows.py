@@ -1,13 +1,13 @@
 """Shadow-atlas measurements (issue "Shadow atlas manager", Measure).
 
-* ``room``: 50 shadowed lights in a 10 m room (``gen_lights_scene``), static camera:
+* ``room``: 50 shadowed lights in a 10 m room (``stb_hydra.scenegen.lights``), static camera:
   frames until every map is fresh, texels per frame against the budget.
 * ``lights5000``: the ``stb bench`` generator at 5,000 lights (1,278 shadowed): the
   atlas fill with many small maps; capture time per frame (median / max).
-* ``chess``: 500 shadowed lights over the OpenChessSet (``gen_chess_lights``): same.
+* ``chess``: 500 shadowed lights over the OpenChessSet (``stb_hydra.scenegen.chess``): same.
 * ``moving``: the room with 20 of its lights animated: static-map staleness
   (frames a dirty map waited: mean / p95 / max) while lights move.
-* ``orbs``: 1,000 frames of the orbs scene (``gen_orbs``: orbs spawn and move,
+* ``orbs``: 1,000 frames of the orbs scene (``stb_hydra.scenegen.orbs``: orbs spawn and move,
   dynamic shadows): atlas occupancy and fragmentation at the end, staleness.
 
 The lighting method is ``stb`` (N=1; the atlas work does not depend on the method,
@@ -22,16 +22,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-
-REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
-
 
 METHOD = "stb"
 
@@ -151,9 +146,9 @@ def main(argv=None) -> int:
     from pxr import Usd
 
     import stb_hydra  # noqa: F401
-    from tools.gen_chess_lights import main as chess_main
-    from tools.gen_lights_scene import build_lights_stage
-    from tools.gen_orbs import main as orbs_main
+    from stb_hydra.scenegen.chess import main as chess_main
+    from stb_hydra.scenegen.lights import build_lights_stage
+    from stb_hydra.scenegen.orbs import main as orbs_main
 
     w, h = (int(x) for x in a.size.split("x"))
     cases = [c.strip() for c in a.cases.split(",") if c.strip()]

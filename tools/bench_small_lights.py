@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Shading cost of the exact many-light methods when lights are small.
 
-5,000 lights of 1-5 lm (``tools/gen_lights_scene.py``, ranges ~1-3 m), so most
+5,000 lights of 1-5 lm (``stb_hydra.scenegen.lights``, ranges ~1-3 m), so most
 lights do not reach a given pixel: the case where culling, clusters and light
 trees pay off. For ``clustered``, the ``lighttree`` modes (hybrid, all trees,
 tree-only with 2D tiles, lists only), uncapped ``tiled`` and ``reference``:
@@ -16,13 +16,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
-from pathlib import Path
 
 import numpy as np
-
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 CONFIGS = [
     ("clustered", {}),
@@ -47,7 +42,7 @@ def main(argv=None) -> int:
     from stb_hydra.metrics import relmse
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
 
     w, h = (int(x) for x in a.size.split("x"))
     print("load", os.getloadavg()[0], flush=True)

@@ -29,9 +29,6 @@ import time
 from collections import Counter
 from pathlib import Path
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
 

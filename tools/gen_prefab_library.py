@@ -28,12 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tools._scenegen import (
-    PREFAB_DIR,
-    USD_SCENES,
+from stb_hydra.scenegen.common import (
     MeshData,
     UsdaWriter,
     arch,
@@ -52,6 +47,9 @@ from tools._scenegen import (
     vec,
     write_text_atomic,
 )
+
+USD_SCENES = Path(__file__).resolve().parents[1] / "usd_scenes"  # this checkout's
+PREFAB_DIR = USD_SCENES / "prefabs"
 
 # --------------------------------------------------------------------------------------
 # Photometric design of the prefab lights (single source of truth for docs and tests)

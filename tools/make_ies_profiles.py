@@ -27,10 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from stb_hydra.scenegen.common import write_text_atomic
 
-from tools._scenegen import IES_DIR, write_text_atomic
+IES_DIR = Path(__file__).resolve().parents[1] / "usd_scenes" / "ies"  # this checkout's
 
 ISSUE_DATE = "2025-08-10"
 

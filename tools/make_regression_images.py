@@ -24,19 +24,10 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "tests" / "data" / "regression"
 
 
-def _generators():
-    sys.path.insert(0, str(ROOT))
-    try:  # after the render-core refactor the generators live in the package
-        from stb_hydra.scenegen.chess import build_chess_stage
-        from stb_hydra.scenegen.lights import build_lights_stage
-    except ImportError:  # pragma: no cover - before it
-        from tools.gen_chess_lights import build_chess_stage
-        from tools.gen_lights_scene import build_lights_stage
-    return build_lights_stage, build_chess_stage
-
-
 def write_scenes() -> None:
-    build_lights_stage, build_chess_stage = _generators()
+    from stb_hydra.scenegen.chess import build_chess_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
+
     OUT.mkdir(parents=True, exist_ok=True)
     build_lights_stage(n_lights=64, seed=3, shadow_fraction=0.6, dynamic_fraction=0.3,
                        path=OUT / "lights64.usda")
@@ -50,6 +41,7 @@ def main() -> int:
 
     from stb_hydra.io.images import write_image
 
+    # The cases and their rendering are the test's own (tests/ is not a package).
     sys.path.insert(0, str(ROOT / "tests"))
     from test_regression_images import CASES, render_case
 

@@ -5,9 +5,9 @@
     stb bench gen:lights:500 --methods stb --stb K=32 --method-option stb:eps=0.05
 
 Scenes: USD files, or generators ``gen:KIND:COUNTS[:key=value...]`` with KIND
-``lights`` (``tools/gen_lights_scene.build_lights_stage``), ``chess``
-(``tools/gen_chess_lights.build_chess_stage``) or ``orbs``
-(``tools/gen_orbs.build_orbs_stage``), COUNTS a comma list of light counts and
+``lights`` (:func:`stb_hydra.scenegen.lights.build_lights_stage`), ``chess``
+(:func:`stb_hydra.scenegen.chess.build_chess_stage`) or ``orbs``
+(:func:`stb_hydra.scenegen.orbs.build_orbs_stage`), COUNTS a comma list of light counts and
 ``key=value`` extra generator arguments (``gen:lights:500:seed=3:animated=50``).
 
 Methods: ``--methods`` takes a comma list of ``NAME[:opt=value]``; a following
@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib
 import io
 import json
 import os
@@ -45,11 +44,11 @@ from .common import EXIT_OK, CliError, fail
 DEFAULT_METHODS = "stb,reference,sun"
 DEFAULT_SIZE = (745, 360)  # the talk's Adreno 610 resolution
 
-#: Generator kind -> (tools module, builder, name of its light-count argument).
+#: Generator kind -> (``stb_hydra.scenegen`` module, builder, name of its count argument).
 GENERATORS: dict[str, tuple[str, str, str]] = {
-    "lights": ("gen_lights_scene", "build_lights_stage", "n_lights"),
-    "chess": ("gen_chess_lights", "build_chess_stage", "n_lights"),
-    "orbs": ("gen_orbs", "build_orbs_stage", "n_orbs"),
+    "lights": ("lights", "build_lights_stage", "n_lights"),
+    "chess": ("chess", "build_chess_stage", "n_lights"),
+    "orbs": ("orbs", "build_orbs_stage", "n_orbs"),
 }
 
 #: Pass names in the talk's words (plot legends, table).
@@ -196,20 +195,6 @@ def _flag_dest(method: str) -> str:
     return "opts_" + method.replace("-", "_")
 
 
-def _tools_module(name: str):
-    """``tools.<name>`` from the source checkout (generators are not installed)."""
-    try:
-        return importlib.import_module(f"tools.{name}")
-    except ImportError:
-        root = Path(__file__).resolve().parents[2]
-        if not (root / "tools" / f"{name}.py").is_file():
-            raise CliError(
-                f"scene generators need the repository's tools/{name}.py (source checkout)"
-            ) from None
-        sys.path.insert(0, str(root))
-        return importlib.import_module(f"tools.{name}")
-
-
 def parse_scene(spec: str) -> list[SceneCase]:
     """A USD path or ``gen:KIND:COUNTS[:key=value...]`` -> scene cases."""
     if not spec.startswith("gen:"):
@@ -252,7 +237,10 @@ def _builder(kind: str, n: int, kwargs: dict[str, Any]) -> Callable[[], Any]:
     mod_name, fn_name, count_arg = GENERATORS[kind]
 
     def build():
-        fn = getattr(_tools_module(mod_name), fn_name)
+        from ..scenegen import chess, lights, orbs
+
+        modules = {"lights": lights, "chess": chess, "orbs": orbs}
+        fn = getattr(modules[mod_name], fn_name)
         try:
             return fn(**{count_arg: n, **kwargs})
         except (TypeError, ValueError, FileNotFoundError, RuntimeError) as exc:

@@ -20,8 +20,8 @@ Writes ``tradeoff.csv``, ``pareto.png`` (error against time: per frame on the le
 time to the accumulated image = A x frame on the right; one marker per method, the
 Pareto frontier drawn) and ``report.md`` (best configuration per time budget).
 
-``SCENE`` is a USD file or ``lights:N`` / ``chess:N`` (``tools/gen_lights_scene.py``
-/ ``tools/gen_chess_lights.py``, in memory, seed ``--seed``).
+``SCENE`` is a USD file or ``lights:N`` / ``chess:N`` (:mod:`stb_hydra.scenegen.lights`
+/ :mod:`stb_hydra.scenegen.chess`, in memory, seed ``--seed``).
 
 ``--sweep-lights 50,500,5000`` measures frame time against light count instead (the
 ``lights`` generator, or ``chess`` with ``SCENE=chess``) for stb, reference, sun,
@@ -114,27 +114,17 @@ def grid_units(
 # --- scenes --------------------------------------------------------------------------------
 
 
-def _tools():
-    try:
-        import tools.gen_chess_lights as chess
-        import tools.gen_lights_scene as lights
-    except ImportError:
-        root = Path(__file__).resolve().parents[2]
-        if not (root / "tools" / "gen_lights_scene.py").is_file():
-            raise CliError("scene generators (tools/) not found next to stb_hydra") from None
-        sys.path.insert(0, str(root))
-        import tools.gen_chess_lights as chess
-        import tools.gen_lights_scene as lights
-    return lights, chess
-
-
 def generated_stage(kind: str, n: int, seed: int = 0, lumens: tuple | None = None):
-    lights, chess = _tools()
-    if kind == "lights":
-        extra = {"lumens": lumens} if lumens else {}
-        return lights.build_lights_stage(n_lights=n, seed=seed, **extra)
-    if kind == "chess":
-        return chess.build_chess_stage(n_lights=n, seed=seed)
+    from ..scenegen import chess, lights
+
+    try:
+        if kind == "lights":
+            extra = {"lumens": lumens} if lumens else {}
+            return lights.build_lights_stage(n_lights=n, seed=seed, **extra)
+        if kind == "chess":
+            return chess.build_chess_stage(n_lights=n, seed=seed)
+    except FileNotFoundError as exc:  # an input asset (IES profiles, chess set) is missing
+        raise CliError(f"cannot generate {kind}:{n}: {exc}") from None
     raise CliError(f"unknown generated scene '{kind}' (lights:N or chess:N)")
 
 

@@ -1,9 +1,10 @@
-#!/usr/bin/env python3
 """Generate the chess many-light scene: the OpenChessSet on a table under N tiny lights.
 
-The stage references ``../shared/testdata/scenes/OpenChessSet/chess_set.usda`` (a
-relative asset path computed from OUT's folder, so the written file resolves it;
-absolute for in-memory stages), puts the 70 cm board on a table in a room-sized
+The stage references the OpenChessSet's ``chess_set.usda`` (``--chess`` / ``chess``,
+else ``$STB_SHARED/testdata/scenes/OpenChessSet/chess_set.usda``, else the same under
+``../shared`` next to the source checkout; see :func:`.common.chess_set`) by a
+relative asset path computed from OUT's folder, so the written file resolves it
+(absolute for in-memory stages), puts the 70 cm board on a table in a room-sized
 floor, and scatters N small shadowed sphere lights 2-20 cm above the board top
 (radius 2-20 mm), never inside a piece (piece bounds come from the asset's
 extentsHint, read without loading payloads). The lights share ``--total-lumens``
@@ -15,7 +16,9 @@ so by default the stage also binds plain UsdPreviewSurface fallbacks (ivory, ebo
 walnut) on the White / Black / Chessboard groups with ``strongerThanDescendants``;
 ``--no-fallback-materials`` leaves the asset's own bindings alone.
 
-    python tools/gen_chess_lights.py out/chess_256.usda --lights 256
+    python -m stb_hydra.scenegen.chess out/chess_256.usda --lights 256
+
+(``python tools/gen_chess_lights.py ...`` in a checkout is the same command.)
 """
 
 from __future__ import annotations
@@ -28,14 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tools._scenegen import (
-    CHESS_SET,
+from .common import (
     UsdaWriter,
     asset_path,
     box,
+    chess_set,
     exposure_for_illuminance,
     hsv_to_rgb,
     merge,
@@ -94,16 +94,14 @@ def piece_bounds(chess: Path) -> tuple[np.ndarray, float]:
 def chess_scene_usda(
     n_lights: int = 256,
     seed: int = 0,
-    chess: Path | str = CHESS_SET,
+    chess: Path | str | None = None,
     total_lumens: float = 300.0,
     radius: tuple[float, float] = (0.002, 0.02),
     height: tuple[float, float] = (0.02, 0.2),
     fallback_materials: bool = True,
     anchor_dir: Path | str | None = None,
 ) -> str:
-    chess = Path(chess).resolve()
-    if not chess.is_file():
-        raise FileNotFoundError(f"chess set not found: {chess}")
+    chess = chess_set(chess)  # FileNotFoundError when missing
     rng = np.random.default_rng(seed)
     pieces, board_top = piece_bounds(chess)
     n = n_lights
@@ -226,7 +224,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("out", type=Path, help="output .usda or .usdc")
     ap.add_argument("--lights", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--chess", type=Path, default=CHESS_SET, help="chess_set.usda to reference")
+    ap.add_argument("--chess", type=Path, default=None,
+                    help="chess_set.usda to reference (default: $STB_SHARED's, else "
+                    "../shared's next to the checkout)")
     ap.add_argument("--total-lumens", type=float, default=300.0,
                     help="flux shared by all lights")
     ap.add_argument("--radius", type=float, nargs=2, default=(0.002, 0.02), metavar=("MIN", "MAX"),

@@ -1,4 +1,6 @@
-"""Shared helpers for stb_hydra's scene generators (tools/gen_*.py, make_ies_profiles.py).
+"""Shared helpers of stb_hydra's scene generators (``stb_hydra.scenegen.lights`` /
+``.chess`` / ``.orbs``, and the checkout's ``tools/gen_prefab_library.py`` /
+``tools/make_ies_profiles.py``).
 
 Why text and not the Sdf API: with usd-core 26.11 in Python, creating 100,000 light
 prims through ``Sdf.PrimSpec``/``Sdf.AttributeSpec`` (inside ``Sdf.ChangeBlock``) costs
@@ -26,12 +28,73 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
-USD_SCENES = REPO / "usd_scenes"
-IES_DIR = USD_SCENES / "ies"
-PREFAB_DIR = USD_SCENES / "prefabs"
-CHESS_SET = SHARED / "testdata" / "scenes" / "OpenChessSet" / "chess_set.usda"
+# --------------------------------------------------------------------------------------
+# Input assets. The generators reference files that are not part of the installed
+# package: usd_scenes/ies/*.ies and usd_scenes/prefabs/*.usda of the source checkout,
+# and the OpenChessSet of the shared test data. Each is taken from an explicit
+# argument first; the checkout's copy is only a fallback, looked up when needed
+# (never at import), so an installed package works as long as paths are given.
+# --------------------------------------------------------------------------------------
+
+#: The source checkout this module lives in, if it is one (``stb_hydra/scenegen/`` two
+#: levels below the repository root); an installed package has no ``usd_scenes`` there.
+CHECKOUT = Path(__file__).resolve().parents[2]
+#: Environment variable naming the shared test-data root (holds ``testdata/``).
+SHARED_ENV = "STB_SHARED"
+CHESS_SET_REL = Path("testdata") / "scenes" / "OpenChessSet" / "chess_set.usda"
+
+
+def _checkout_dir(name: str, what: str, explicit: Path | str | None, option: str) -> Path:
+    if explicit is not None:
+        d = Path(explicit).resolve()
+        if not d.is_dir():
+            raise FileNotFoundError(f"{what} folder not found: {d}")
+        return d
+    d = CHECKOUT / "usd_scenes" / name
+    if d.is_dir():
+        return d
+    raise FileNotFoundError(
+        f"{what} not found: pass {option} (usd_scenes/{name} of a stb_hydra source "
+        "checkout; the installed package does not ship it)"
+    )
+
+
+def ies_dir(explicit: Path | str | None = None) -> Path:
+    """Folder of the IES profiles (``<name>.ies``): ``explicit``, else the checkout's
+    ``usd_scenes/ies``; FileNotFoundError when neither exists."""
+    return _checkout_dir("ies", "IES profiles", explicit, "ies_dir / --ies-dir")
+
+
+def prefab_dir(explicit: Path | str | None = None) -> Path:
+    """Folder of the prefab layers (``<name>.usda``): ``explicit``, else the checkout's
+    ``usd_scenes/prefabs``; FileNotFoundError when neither exists."""
+    return _checkout_dir("prefabs", "prefab library", explicit, "prefab_dir / --prefab-dir")
+
+
+def chess_set(explicit: Path | str | None = None) -> Path:
+    """The OpenChessSet's ``chess_set.usda``: ``explicit``, else
+    ``$STB_SHARED/testdata/scenes/OpenChessSet/chess_set.usda``, else the same under
+    ``../shared`` next to the source checkout. FileNotFoundError (saying where it
+    looked) when the file is missing."""
+    if explicit is not None:
+        p = Path(explicit).resolve()
+        if not p.is_file():
+            raise FileNotFoundError(f"chess set not found: {p}")
+        return p
+    env = os.environ.get(SHARED_ENV)
+    if env:
+        p = (Path(env) / CHESS_SET_REL).resolve()
+        if not p.is_file():
+            raise FileNotFoundError(f"chess set not found: {p} (from ${SHARED_ENV})")
+        return p
+    p = (CHECKOUT.parent / "shared" / CHESS_SET_REL).resolve()
+    if p.is_file():
+        return p
+    raise FileNotFoundError(
+        "chess set not found: pass chess / --chess (chess_set.usda of the OpenChessSet) "
+        f"or set ${SHARED_ENV} to the shared test-data root (holding {CHESS_SET_REL})"
+    )
+
 
 # --------------------------------------------------------------------------------------
 # Photometry (UsdLux, see ../shared/docs/STB_SPEC.md "Light units")

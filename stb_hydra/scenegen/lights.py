@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Generate a many-light test scene: a ground plane, occluder boxes and N local lights.
 
 N (50 to 100,000+) lights of mixed UsdLux types are scattered over a square ground
@@ -8,16 +7,18 @@ rest are static. A fraction casts shadows, and a fraction of those asks for dyna
 shadow maps (StbLightAPI ``stb:shadow:update = "dynamic"``). A camera frames the
 square from a raised corner, exposed for the scene's mean illuminance.
 
-    python tools/gen_lights_scene.py out/lights_10k.usda --lights 10000 --animated 100
+    python -m stb_hydra.scenegen.lights out/lights_10k.usda --lights 10000 --animated 100
 
-In Python (tests, benchmarks)::
+(``python tools/gen_lights_scene.py ...`` in a checkout is the same command.)
+In Python (tests, benchmarks, ``stb bench gen:lights:N``)::
 
-    from tools.gen_lights_scene import build_lights_stage
+    from stb_hydra.scenegen.lights import build_lights_stage
     stage = build_lights_stage(n_lights=10_000, seed=1, animated=100)  # in memory
 
 Light types (``--types``): sphere (SphereLight), spot (SphereLight + ShapingAPI
 cone, aimed down), disk (DiskLight, facing down), rect (RectLight, facing down),
-ies (SphereLight + one of usd_scenes/ies/*.ies, normalised, aimed down).
+ies (SphereLight + one of the IES profiles of usd_scenes/ies, normalised, aimed down;
+``ies_dir`` / ``--ies-dir`` names that folder, by default the source checkout's).
 Intensities are UsdLux luminance in nits derived from the drawn flux:
 sphere/spot L = Phi/(4 pi * pi r^2) (spot: before the cone cuts it), ies
 L = Phi/(2 pi * pi r^2) (normalised hemispherical profile), disk L = Phi/(pi^2 r^2),
@@ -40,11 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tools._scenegen import (
-    IES_DIR,
+from .common import (
     UsdaWriter,
     asset_path,
     box,
@@ -55,6 +52,7 @@ from tools._scenegen import (
     save,
     stage_from_text,
 )
+from .common import ies_dir as _ies_dir
 
 ALL_TYPES = ("sphere", "spot", "disk", "rect", "ies")
 #: IES profile -> cone angle to author (180 = no cone: the uplight emits upwards).
@@ -129,9 +127,12 @@ def lights_scene_usda(
     sample_step: int = 2,
     lumens: tuple[float, float] = (100.0, 2000.0),
     anchor_dir: Path | str | None = None,
+    ies_dir: Path | str | None = None,
 ) -> str:
     """The scene as .usda text. ``anchor_dir``: directory the file will live in (IES
-    paths are written relative to it); None writes absolute IES paths."""
+    paths are written relative to it); None writes absolute IES paths. ``ies_dir``:
+    folder of the ``<profile>.ies`` files (default: the checkout's usd_scenes/ies;
+    only needed when ``types`` includes ``ies``)."""
     if n_lights < 1:
         raise ValueError("need at least one light")
     if not 0 <= animated <= n_lights:
@@ -184,7 +185,10 @@ def lights_scene_usda(
     nits = np.where(use_kelvin, nits, nits / rgb_y)
 
     ies_names = list(IES_PROFILES)
-    ies_assets = [asset_path(IES_DIR / f"{name}.ies", anchor_dir) for name in ies_names]
+    ies_assets = ["@@"] * len(ies_names)  # only referenced by "ies" lights
+    if "ies" in types:
+        folder = _ies_dir(ies_dir)
+        ies_assets = [asset_path(folder / f"{name}.ies", anchor_dir) for name in ies_names]
     sample_frames = list(range(1, frames + 1, max(1, sample_step)))
     if sample_frames[-1] != frames:
         sample_frames.append(frames)
@@ -325,7 +329,7 @@ def build_lights_stage(
     """Generate the scene and return a ``Usd.Stage``: in memory when ``path`` is None
     (IES paths absolute), else written to ``path`` (.usda/.usdc) and opened from it.
     ``kwargs``: types, shadow_fraction, dynamic_fraction, size, frames, sample_step,
-    lumens (see :func:`lights_scene_usda`)."""
+    lumens, ies_dir (see :func:`lights_scene_usda`)."""
     from pxr import Usd
 
     if path is None:
@@ -359,6 +363,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="frames between translate samples of animated lights")
     ap.add_argument("--lumens", type=float, nargs=2, default=(100.0, 2000.0),
                     metavar=("MIN", "MAX"), help="log-uniform flux range per light")
+    ap.add_argument("--ies-dir", type=Path, default=None,
+                    help="folder of the IES profiles (default: the checkout's usd_scenes/ies)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
@@ -367,8 +373,9 @@ def main(argv: list[str] | None = None) -> int:
             shadow_fraction=args.shadow_fraction, dynamic_fraction=args.dynamic_fraction,
             size=args.size, frames=args.frames, sample_step=args.sample_step,
             lumens=tuple(args.lumens), anchor_dir=args.out.resolve().parent,
+            ies_dir=args.ies_dir,
         )
-    except ValueError as e:
+    except (ValueError, FileNotFoundError) as e:
         ap.error(str(e))
     save(text, args.out)
     print(f"wrote {args.out}: {args.lights} lights, {args.animated} animated, "

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Generate the "enemy orbs" scene: orbs spawn over time in an arena and swarm it.
 
 A round arena (ring wall, pillars, a central dais, four spawn gates) lit by static
@@ -9,10 +8,12 @@ frames - each orb's ``visibility`` is time-sampled ``invisible`` -> ``inherited`
 its spawn frame - then fly in from their gate onto a circling, bobbing orbit. The
 number alive grows roughly linearly from a handful at frame 1 to N.
 
-    python tools/gen_orbs.py out/orbs.usda --orbs 200 --frames 240
+    python -m stb_hydra.scenegen.orbs out/orbs.usda --orbs 200 --frames 240
 
+(``python tools/gen_orbs.py ...`` in a checkout is the same command.)
 Orbs reference ``usd_scenes/prefabs/enemy_orb.usda`` (relative to OUT, absolute for
-in-memory stages) as instanceable prims: the renderer must honour time-varying
+in-memory stages; ``--prefab-dir`` / ``prefab_dir`` names the prefab folder, by
+default the source checkout's) as instanceable prims: the renderer must honour time-varying
 visibility on instance roots (an invisible prim hides its lights too).
 """
 
@@ -26,11 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from tools._scenegen import (
-    PREFAB_DIR,
+from .common import (
     UsdaWriter,
     arch,
     asset_path,
@@ -42,6 +39,7 @@ from tools._scenegen import (
     save,
     stage_from_text,
 )
+from .common import prefab_dir as _prefab_dir
 
 ORB_LUMENS = 395.0  # enemy_orb prefab, white-equivalent (see its doc)
 TORCH_LUMENS = 296.0
@@ -65,7 +63,12 @@ def orbs_scene_usda(
     sample_step: int = 4,
     initial: int = 4,
     anchor_dir: Path | str | None = None,
+    prefab_dir: Path | str | None = None,
 ) -> str:
+    """The scene as .usda text. ``anchor_dir``: directory the file will live in (prefab
+    references are relative to it; None: absolute). ``prefab_dir``: folder holding
+    ``enemy_orb.usda`` and ``wall_torch.usda`` (default: the checkout's
+    usd_scenes/prefabs)."""
     if n_orbs < 1 or frames < 2:
         raise ValueError("need at least one orb and two frames")
     rng = np.random.default_rng(seed)
@@ -117,8 +120,9 @@ def orbs_scene_usda(
                 break
 
     w = UsdaWriter()
-    orb_ref = asset_path(PREFAB_DIR / "enemy_orb.usda", anchor_dir)
-    torch_ref = asset_path(PREFAB_DIR / "wall_torch.usda", anchor_dir)
+    prefabs = _prefab_dir(prefab_dir)
+    orb_ref = asset_path(prefabs / "enemy_orb.usda", anchor_dir)
+    torch_ref = asset_path(prefabs / "wall_torch.usda", anchor_dir)
     e_full = (0.5 * n_orbs * ORB_LUMENS * 0.51 + 0.5 * torches * TORCH_LUMENS) / (math.pi * R * R)
     exposure = exposure_for_illuminance(max(e_full * 0.5, 1.0))
     w.header(
@@ -227,13 +231,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--arena-radius", type=float, default=15.0, help="metres")
     ap.add_argument("--sample-step", type=int, default=4, help="frames between path samples")
     ap.add_argument("--initial", type=int, default=4, help="orbs alive at frame 1")
+    ap.add_argument("--prefab-dir", type=Path, default=None,
+                    help="folder of enemy_orb.usda / wall_torch.usda "
+                    "(default: the checkout's usd_scenes/prefabs)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
         text = orbs_scene_usda(args.orbs, args.frames, args.seed, args.torches,
                                args.arena_radius, args.sample_step, args.initial,
-                               anchor_dir=args.out.resolve().parent)
-    except ValueError as e:
+                               anchor_dir=args.out.resolve().parent,
+                               prefab_dir=args.prefab_dir)
+    except (ValueError, FileNotFoundError) as e:
         ap.error(str(e))
     save(text, args.out)
     print(f"wrote {args.out}: {args.orbs} orbs over {args.frames} frames "
