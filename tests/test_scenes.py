@@ -428,6 +428,48 @@ def test_generator_cli_help(tool: str):
     assert "usage" in r.stdout.lower()
 
 
+@pytest.mark.parametrize("module", ["lights", "chess", "orbs"])
+def test_generator_module_cli_help(module: str):
+    r = subprocess.run([sys.executable, "-m", f"stb_hydra.scenegen.{module}", "--help"],
+                       capture_output=True, text=True, timeout=60, cwd=Path.home())
+    assert r.returncode == 0, r.stderr
+    assert "usage" in r.stdout.lower()
+
+
+def test_generator_inputs_without_a_checkout(tmp_path: Path, monkeypatch, testdata: Path,
+                                             capsys):
+    """Installed (no usd_scenes next to the package, no $STB_SHARED): generators that
+    need no input asset still work, the others say what to pass; explicit paths give
+    the same text as the checkout's defaults."""
+    from stb_hydra.scenegen import chess, common, lights, orbs
+
+    with_checkout = lights.lights_scene_usda(8, seed=1, types="ies,sphere")
+    monkeypatch.setattr(common, "CHECKOUT", tmp_path / "site-packages")
+    monkeypatch.delenv("STB_SHARED", raising=False)
+    assert "SphereLight" in lights.lights_scene_usda(8, types="sphere,disk")
+    with pytest.raises(FileNotFoundError, match="ies_dir / --ies-dir"):
+        lights.lights_scene_usda(8, types="ies")
+    assert lights.lights_scene_usda(8, seed=1, types="ies,sphere",
+                                    ies_dir=SCENES / "ies") == with_checkout
+    with pytest.raises(SystemExit):
+        lights.main([str(tmp_path / "l.usda"), "--lights", "8"])
+    assert "IES profiles not found" in capsys.readouterr().err
+    with pytest.raises(FileNotFoundError, match="prefab_dir / --prefab-dir"):
+        orbs.orbs_scene_usda(4, 24)
+    assert "Orb_0003" in orbs.orbs_scene_usda(4, 24, prefab_dir=SCENES / "prefabs")
+    with pytest.raises(FileNotFoundError, match=r"--chess.*\$STB_SHARED"):
+        chess.chess_scene_usda(4)
+    chess_usda = testdata / "scenes" / "OpenChessSet" / "chess_set.usda"
+    assert chess.chess_set(chess_usda) == chess_usda.resolve()
+    with pytest.raises(FileNotFoundError, match="chess set not found"):
+        chess.chess_set(tmp_path / "nosuch.usda")
+    monkeypatch.setenv("STB_SHARED", str(tmp_path))
+    with pytest.raises(FileNotFoundError, match=r"from \$STB_SHARED"):
+        chess.chess_set()
+    monkeypatch.setenv("STB_SHARED", str(testdata.parent))
+    assert chess.chess_set() == chess_usda.resolve()
+
+
 @pytest.mark.parametrize("n", [50, 10_000])
 def test_gen_lights_counts_and_speed(n: int):
     from stb_hydra.scenegen.lights import build_lights_stage
