@@ -10,6 +10,7 @@ from stagegen import many_lights_stage, usda_stage
 from stb_hydra.renderer.delegate import RenderDelegate
 from stb_hydra.renderer.render_index import RenderIndex
 from stb_hydra.scene.locators import DirtyBits as D
+from stb_hydra.scene.materials import read_material
 from stb_hydra.scene.stage_scene_index import StageSceneIndex
 
 
@@ -311,6 +312,39 @@ def Xform "W"
     ri.sync_all()
     assert set(ri.counters.last) == {"/W/Looks/Red"}
     assert ri.delegate.materials["/W/Looks/Red"].material.roughness == pytest.approx(0.9)
+    assert not m.uses_defaults
+
+
+@pytest.mark.parametrize(
+    ("surface", "why"),
+    [
+        ("", "no UsdPreviewSurface surface"),
+        ('uniform token info:id = "ND_standard_surface_surfaceshader"',
+         "surface shader 'ND_standard_surface_surfaceshader' is not UsdPreviewSurface"),
+    ],
+)
+def test_material_without_preview_surface_uses_defaults(surface, why):
+    shader = f"""
+        token outputs:surface.connect = </W/M/S.outputs:surface>
+        def Shader "S"
+        {{
+            {surface}
+            token outputs:surface
+        }}""" if surface else ""
+    stage = usda_stage(
+        f"""#usda 1.0
+def Xform "W"
+{{
+    def Material "M"
+    {{{shader}
+    }}
+}}
+"""
+    )
+    m = read_material(stage.GetPrimAtPath("/W/M"), Usd.TimeCode.Default())
+    assert m.uses_defaults
+    assert m.warnings == [f"material </W/M>: {why}; using defaults"]
+    np.testing.assert_allclose(m.diffuse_color, 0.18)
 
 
 def test_notices_are_queued_until_applied():

@@ -29,15 +29,18 @@ import math
 import os
 from collections.abc import Callable
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from pxr import Sdf, Usd, UsdLux
 
 from .. import limits
+from ..color import LUMINANCE_REC709
 from . import prims
+from .ies import IesError, IesProfile, load_ies
 from .prims import LightPrim
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 luminance weights
+_LUMA = np.array(LUMINANCE_REC709)
 
 _TYPE_BY_SCHEMA = {
     "SphereLight": prims.SPHERE_LIGHT,
@@ -51,8 +54,8 @@ _TYPE_BY_SCHEMA = {
     "GeometryLight": prims.MESH_LIGHT,
 }
 
-# Light inputs whose pre-21.02 spelling had no "inputs:" prefix.
-_LEGACY_INPUTS = (
+#: Light inputs whose pre-21.02 spelling had no "inputs:" prefix.
+LEGACY_INPUTS = (
     "intensity",
     "exposure",
     "diffuse",
@@ -120,7 +123,7 @@ class LightReadContext:
         self.render_from_stage = render_from_stage
         self.warn = warn
         self.warn_once = warn_once
-        self.ies_loader: Callable[[str], object] = _load_ies_cached
+        self.ies_loader: Callable[[str], IesProfile] = load_ies_cached
 
 
 # --- attribute access ------------------------------------------------------------------
@@ -150,7 +153,9 @@ class _Attrs:
         a = self.prim.GetAttribute(name)
         return a if a else None
 
-    def get(self, name: str, default):
+    def get(self, name: str, default: Any) -> Any:
+        """Value of ``name`` at the read time (or its legacy un-namespaced spelling,
+        recorded in ``legacy``); ``default`` when neither is authored."""
         if name in self.names:
             a = self.prim.GetAttribute(name)
             v = a.Get(self.time) if a else None
@@ -158,7 +163,7 @@ class _Attrs:
                 return v
         if name.startswith("inputs:"):
             bare = name[7:]
-            if bare in self.names and bare in _LEGACY_INPUTS:
+            if bare in self.names and bare in LEGACY_INPUTS:
                 a = self.prim.GetAttribute(bare)
                 v = a.Get(self.time) if a else None
                 if v is not None:
@@ -174,7 +179,7 @@ class _Attrs:
         return name in self.names or (name.startswith("inputs:") and name[7:] in self.names)
 
 
-def _finite(x) -> bool:
+def _finite(x: Any) -> bool:
     """True for a finite number or a sequence of finite numbers (pure Python: hot path)."""
     try:
         if isinstance(x, (int, float)):
@@ -185,7 +190,7 @@ def _finite(x) -> bool:
         return False
 
 
-def _vec3(v) -> np.ndarray:
+def _vec3(v: Any) -> np.ndarray:
     return np.array([float(v[0]), float(v[1]), float(v[2])], dtype=np.float64)
 
 
@@ -196,14 +201,12 @@ def _row_norm(m: np.ndarray, i: int) -> float:
 # --- IES ------------------------------------------------------------------------------
 
 
-_ies_cache: dict[tuple[str, float], object] = {}
-_ies_by_path: dict[str, object] = {}
+_ies_cache: dict[tuple[str, float], IesProfile] = {}
+_ies_by_path: dict[str, IesProfile] = {}
 
 
-def _load_ies_cached(path: str):
+def load_ies_cached(path: str) -> IesProfile:
     """Load (and cache by path + mtime) an IES profile; raises IesError."""
-    from .ies import load_ies
-
     try:
         mtime = os.path.getmtime(path)
     except OSError:
@@ -215,6 +218,11 @@ def _load_ies_cached(path: str):
         _ies_cache[key] = prof
     _ies_by_path[path] = prof
     return prof
+
+
+#: Deprecated spelling of :func:`load_ies_cached`, kept until ``renderer.gl_delegate``
+#: switches to the public name.
+_load_ies_cached = load_ies_cached
 
 
 def ies_theta(theta: np.ndarray, angle_scale: float) -> np.ndarray:
@@ -239,7 +247,7 @@ _DPH = 2.0 * math.pi / _NP
 
 def cone_factor(theta: np.ndarray, angle_deg: float, softness: float) -> np.ndarray:
     """UsdLux cone: 1 - smoothstep(start, cutoff, theta); 0 beyond the cutoff."""
-    cutoff = math.radians(min(max(angle_deg, 0.0), 180.0))
+    cutoff = math.radians(min(max(angle_deg, 0.0), prims.NO_CONE_ANGLE_DEG))
     s = min(max(softness, 0.0), 1.0)
     start = cutoff * (1.0 - s)
     if cutoff - start > 1e-9:
@@ -285,7 +293,11 @@ def _shape_integral(
     """
     # Integrate only where the cone lets light out: the hard cut-off then falls
     # on the grid's edge and the midpoint rule stays accurate (no 1/N step error).
-    tmax = math.radians(min(max(cone_angle, 0.0), 180.0)) if has_cone else math.pi
+    tmax = (
+        math.radians(min(max(cone_angle, 0.0), prims.NO_CONE_ANGLE_DEG))
+        if has_cone
+        else prims.NO_CONE_CUTOFF_RAD
+    )
     dth = tmax / _NT
     if ies_key is None and emission != prims.EMIT_CYLINDER:
         # Axially symmetric: a 1D integral over theta (x 2 pi), Gauss-Legendre on
@@ -331,7 +343,7 @@ def _shape_integral(
 _ies_stats_cache: dict[tuple[str, int], tuple[float, float]] = {}
 
 
-def _ies_stats(path: str, prof) -> tuple[float, float]:
+def _ies_stats(path: str, prof: IesProfile) -> tuple[float, float]:
     """(max candela, power) of a profile, computed once per loaded profile."""
     key = (path, id(prof))
     v = _ies_stats_cache.get(key)
@@ -341,9 +353,10 @@ def _ies_stats(path: str, prof) -> tuple[float, float]:
     return v
 
 
-def _ies_cache_lookup(path: str):
+def _ies_cache_lookup(path: str) -> IesProfile:
+    """The profile last loaded from ``path`` (loading it if needed)."""
     prof = _ies_by_path.get(path)
-    return prof if prof is not None else _load_ies_cached(path)
+    return prof if prof is not None else load_ies_cached(path)
 
 
 # --- the reader ------------------------------------------------------------------------
@@ -411,21 +424,62 @@ def _read_light_into(
     visible: bool,
     names: frozenset[str] | None = None,
 ) -> None:
+    """Fill ``lp`` from ``prim``, one group of inputs per step (in warning order).
+
+    A step that finds bad input warns and returns False; the light then ends up
+    invalid and disabled (``valid``/``enabled``), but every step still runs so the
+    user sees every problem at once.
+    """
     a = _Attrs(prim, time, names)
     set_transform(lp, world)
-    s = lp.world_scale
     if not math.isfinite(float(np.abs(world).sum())):  # one reduction: hot path
         lp.enabled = False
         _warn(lp, ctx, "non-finite transform; light disabled")
         return
+    radiance, normalize, ok = _read_radiance(lp, a, ctx)
+    ok &= _read_size(lp, a, ctx, world)
+    proj, area = _emission_and_area(lp, prim, ctx, world)
+    if normalize and lp.type in prims.LOCAL_LIGHT_TYPES:
+        radiance = _normalize_by_area(lp, ctx, radiance, area)
+    ok &= _read_shaping(lp, prim, a, ctx)
+    ok &= _set_intensity(lp, prim, a, ctx, radiance, proj, normalize)
+    _read_shadows(lp, a, ctx)
+    _read_linking(lp, prim, a, ctx)
+    _finish_photometry(lp, a)
+    if a.legacy:
+        legacy = ", ".join(sorted(set(a.legacy)))
+        _warn(lp, ctx, f"legacy un-namespaced attributes ({legacy}); use 'inputs:<name>'")
+    ok &= _check_peak_intensity(lp, ctx)
+    lp.valid = bool(ok)
+    lp.enabled = bool(ok and visible)
 
+
+# --- reader steps -------------------------------------------------------------------------
+
+
+def _read_radiance(
+    lp: LightPrim, a: _Attrs, ctx: LightReadContext
+) -> tuple[np.ndarray, bool, bool]:
+    """Radiance ``L = intensity * 2^exposure * colour [* blackbody(T)]`` (nits, RGB),
+    ``inputs:normalize`` and ok; also reads the diffuse/specular multipliers.
+
+    Bad intensity, exposure, colour or multipliers make L zero (and ok False)."""
     intensity = a.get("inputs:intensity", 50000.0 if lp.type == prims.DISTANT_LIGHT else 1.0)
     exposure = a.get("inputs:exposure", 0.0)
     color = a.get("inputs:color", (1.0, 1.0, 1.0))
     normalize = bool(a.get("inputs:normalize", False))
     lp.diffuse = float(a.get("inputs:diffuse", 1.0))
     lp.specular = float(a.get("inputs:specular", 1.0))
+    ok = _check_emission_inputs(lp, ctx, intensity, exposure, color)
+    rgb = _light_rgb(lp, a, ctx, color, ok)
+    scalar = float(intensity) * 2.0 ** float(exposure) if ok else 0.0
+    return scalar * rgb, normalize, ok
 
+
+def _check_emission_inputs(
+    lp: LightPrim, ctx: LightReadContext, intensity: Any, exposure: Any, color: Any
+) -> bool:
+    """Warn about each unusable emission input; True when all are usable."""
     ok = True
     if not _finite(intensity) or float(intensity) < 0:
         _warn(lp, ctx, f"intensity {intensity} is not a finite non-negative number; light disabled")
@@ -437,15 +491,22 @@ def _read_light_into(
             f"exposure {exposure} outside +-{limits.MAX_ABS_EXPOSURE:g} stops; light disabled",
         )
         ok = False
-    color_ok = _finite(color)
-    if not color_ok:
+    if not _finite(color):
         _warn(lp, ctx, f"colour {tuple(color)} is not finite; light disabled")
         ok = False
     for name, val in (("diffuse", lp.diffuse), ("specular", lp.specular)):
         if not math.isfinite(val):
             _warn(lp, ctx, f"inputs:{name} {val} is not finite; light disabled")
             ok = False
-    rgb = _vec3(color) if color_ok else np.zeros(3)
+    return ok
+
+
+def _light_rgb(
+    lp: LightPrim, a: _Attrs, ctx: LightReadContext, color: Any, ok: bool
+) -> np.ndarray:
+    """Linear RGB factor: ``inputs:color`` (negatives clamped) times the blackbody colour
+    when ``enableColorTemperature`` is on; zero for a non-finite colour."""
+    rgb = _vec3(color) if _finite(color) else np.zeros(3)
     if ok and min(float(color[0]), float(color[1]), float(color[2])) < 0:
         _warn(lp, ctx, f"negative colour {tuple(rgb)} clamped to 0")
         rgb = np.maximum(rgb, 0.0)
@@ -455,18 +516,20 @@ def _read_light_into(
             rgb = rgb * np.array(blackbody_rgb(float(t)))
         else:
             _warn(lp, ctx, f"colorTemperature {t} is not finite; ignored")
-    scalar = float(intensity) * 2.0 ** float(exposure) if ok else 0.0
-    L = scalar * rgb  # nits
+    return rgb
 
-    # -- shape and far-field intensity --
-    area = 1.0
+
+def _read_size(lp: LightPrim, a: _Attrs, ctx: LightReadContext, world: np.ndarray) -> bool:
+    """Radius / width x height / length in metres (world scale applied); False (size 0)
+    for a negative or non-finite one."""
+    ok = True
     t = lp.type
     if t in (prims.SPHERE_LIGHT, prims.DISK_LIGHT, prims.CYLINDER_LIGHT):
         r = a.get("inputs:radius", 0.5)
         if not _finite(r) or r < 0:
             _warn(lp, ctx, f"radius {r} is negative or not finite; light disabled")
             ok, r = False, 0.0
-        lp.radius = float(r) * s
+        lp.radius = float(r) * lp.world_scale
     if t == prims.RECT_LIGHT:
         w, h = a.get("inputs:width", 1.0), a.get("inputs:height", 1.0)
         if not (_finite(w) and _finite(h)) or w < 0 or h < 0:
@@ -480,7 +543,16 @@ def _read_light_into(
             _warn(lp, ctx, f"length {ln} negative or not finite; light disabled")
             ok, ln = False, 0.0
         lp.length = float(ln) * _row_norm(world, 0)
+    return ok
 
+
+def _emission_and_area(
+    lp: LightPrim, prim: Usd.Prim, ctx: LightReadContext, world: np.ndarray
+) -> tuple[float, float]:
+    """Set the far-field emission model; return (projected area along the axis, surface
+    area), m^2. Mesh lights move to their mesh's centre; approximations warn once."""
+    t = lp.type
+    area = 1.0
     if t == prims.SPHERE_LIGHT:
         lp.emission = prims.EMIT_ISOTROPIC
         proj = math.pi * lp.radius**2
@@ -515,67 +587,102 @@ def _read_light_into(
             f"light <{lp.path}>: disk/rect/cylinder lights are lit as punctual lights "
             "with their far-field intensity distribution (one warning per stage)",
         )
-    if normalize and t in prims.LOCAL_LIGHT_TYPES:
-        if area > 0:
-            L = L / area
-        else:
-            _warn(lp, ctx, "normalize on a zero-area light; emits nothing")
-            L = L * 0.0
+    return proj, area
 
-    # -- shaping --
+
+def _normalize_by_area(
+    lp: LightPrim, ctx: LightReadContext, radiance: np.ndarray, area: float
+) -> np.ndarray:
+    """``inputs:normalize`` on a local light: radiance divided by the surface area."""
+    if area > 0:
+        return radiance / area
+    _warn(lp, ctx, "normalize on a zero-area light; emits nothing")
+    return radiance * 0.0
+
+
+def _read_shaping(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContext) -> bool:
+    """ShapingAPI of a local light: cone, focus, focus tint and IES profile. False for a
+    cone angle outside [0, 180] degrees."""
     has_shaping = (
         a.any_prefix("inputs:shaping:", "shaping:") or "ShapingAPI" in prim.GetAppliedSchemas()
     )
-    if has_shaping and t in prims.LOCAL_LIGHT_TYPES:
-        ang = a.get("inputs:shaping:cone:angle", 90.0)
-        soft = a.get("inputs:shaping:cone:softness", 0.0)
-        focus = a.get("inputs:shaping:focus", 0.0)
-        tint = a.get("inputs:shaping:focusTint", (0.0, 0.0, 0.0))
-        if not _finite(ang) or ang < 0 or ang > 180:
-            _warn(lp, ctx, f"cone angle {ang} outside [0, 180] degrees; light disabled")
-            ok, ang = False, 180.0
-        if not _finite(soft):
-            _warn(lp, ctx, f"cone softness {soft} is not finite; using 0")
-            soft = 0.0
-        if not _finite(focus):
-            _warn(lp, ctx, f"focus {focus} is not finite; using 0")
-            focus = 0.0
-        lp.has_cone = float(ang) < 180.0
-        lp.cone_angle = float(ang)
-        lp.cone_softness = float(min(max(soft, 0.0), 1.0))
-        lp.focus = float(max(focus, 0.0))
-        lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
-        _read_ies(lp, a, ctx)
-        if lp.ies_file is not None and lp.has_cone:
-            # STB_SPEC: the cone does not clip the IES profile (Arnold test_1316: IES wins).
-            lp.has_cone = False
+    if not has_shaping or lp.type not in prims.LOCAL_LIGHT_TYPES:
+        return True
+    ok = True
+    ang = a.get("inputs:shaping:cone:angle", 90.0)
+    soft = a.get("inputs:shaping:cone:softness", 0.0)
+    focus = a.get("inputs:shaping:focus", 0.0)
+    tint = a.get("inputs:shaping:focusTint", (0.0, 0.0, 0.0))
+    if not _finite(ang) or ang < 0 or ang > prims.NO_CONE_ANGLE_DEG:
+        _warn(lp, ctx, f"cone angle {ang} outside [0, 180] degrees; light disabled")
+        ok, ang = False, prims.NO_CONE_ANGLE_DEG
+    if not _finite(soft):
+        _warn(lp, ctx, f"cone softness {soft} is not finite; using 0")
+        soft = 0.0
+    if not _finite(focus):
+        _warn(lp, ctx, f"focus {focus} is not finite; using 0")
+        focus = 0.0
+    lp.has_cone = float(ang) < prims.NO_CONE_ANGLE_DEG
+    lp.cone_angle = float(ang)
+    lp.cone_softness = float(min(max(soft, 0.0), 1.0))
+    lp.focus = float(max(focus, 0.0))
+    lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
+    _read_ies(lp, a, ctx)
+    if lp.ies_file is not None and lp.has_cone:
+        # STB_SPEC: the cone does not clip the IES profile (Arnold test_1316: IES wins).
+        lp.has_cone = False
+    return ok
 
-    I0 = L * proj  # cd along the axis (before IES)
-    lp.intensity = I0
 
-    # -- distant / dome --
+def _set_intensity(
+    lp: LightPrim,
+    prim: Usd.Prim,
+    a: _Attrs,
+    ctx: LightReadContext,
+    radiance: np.ndarray,
+    proj: float,
+    normalize: bool,
+) -> bool:
+    """``lp.intensity`` by light kind: cd along the axis (local, before IES), lux
+    (distant), nits (dome). False for an unsupported kind (PortalLight)."""
+    lp.intensity = radiance * proj
+    t = lp.type
     if t == prims.DISTANT_LIGHT:
-        ang = a.get("inputs:angle", 0.53)
-        if not _finite(ang) or ang < 0:
-            _warn(lp, ctx, f"angle {ang} negative or not finite; using 0")
-            ang = 0.0
-        lp.angle = float(min(ang, 360.0))
-        tmax = min(math.radians(lp.angle) / 2.0, math.pi)
-        if tmax <= 0.0:
-            size = 1.0
-        elif tmax <= math.pi / 2:
-            size = math.sin(tmax) ** 2 * math.pi
-        else:
-            size = (2.0 - math.sin(tmax) ** 2) * math.pi
-        received = math.pi * math.sin(min(tmax, math.pi / 2)) ** 2 if tmax > 0 else 1.0
-        lp.intensity = L * (received / size if normalize else received)
+        lp.intensity = radiance * _read_distant_angle(lp, a, ctx, normalize)
     elif t == prims.DOME_LIGHT:
-        lp.intensity = L * _dome_texture_average(lp, prim, a, ctx)
+        lp.intensity = radiance * _dome_texture_average(lp, a, ctx)
     elif t == prims.PORTAL_LIGHT:
-        ok = False
         ctx.warn_once("portal", f"light <{lp.path}>: PortalLight is not supported; ignored")
+        return False
+    return True
 
-    # -- shadows (fallbacks unless something is authored: the common case) --
+
+def _read_distant_angle(
+    lp: LightPrim, a: _Attrs, ctx: LightReadContext, normalize: bool
+) -> float:
+    """Set ``lp.angle`` (degrees); return the radiance -> illuminance factor
+    ``pi sin^2(theta_max)`` (1 for a zero angle; divided by the disc's solid-angle
+    measure when normalised)."""
+    ang = a.get("inputs:angle", 0.53)
+    if not _finite(ang) or ang < 0:
+        _warn(lp, ctx, f"angle {ang} negative or not finite; using 0")
+        ang = 0.0
+    lp.angle = float(min(ang, 360.0))
+    tmax = min(math.radians(lp.angle) / 2.0, math.pi)
+    if tmax <= 0.0:
+        size = 1.0
+    elif tmax <= math.pi / 2:
+        size = math.sin(tmax) ** 2 * math.pi
+    else:
+        size = (2.0 - math.sin(tmax) ** 2) * math.pi
+    received = math.pi * math.sin(min(tmax, math.pi / 2)) ** 2 if tmax > 0 else 1.0
+    return received / size if normalize else received
+
+
+def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
+    """ShadowAPI inputs (lengths in metres) and ``stb:shadow:update``; fallbacks unless
+    something is authored (the common case)."""
+    s = lp.world_scale
     if a.any_prefix("inputs:shadow:", "shadow:"):
         lp.shadow_enable = bool(a.get("inputs:shadow:enable", True))
         sc = a.get("inputs:shadow:color", (0.0, 0.0, 0.0))
@@ -599,7 +706,10 @@ def _read_light_into(
         upd = prims.SHADOW_STATIC
     lp.shadow_update = str(upd)
 
-    # -- linking --
+
+def _read_linking(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContext) -> None:
+    """``default_linking`` False when light/shadow linking is authored (unsupported:
+    warned once per stage)."""
     for name in ("collection:lightLink:includeRoot", "collection:shadowLink:includeRoot"):
         inc = a.attr(name)
         if inc is not None and inc.Get() is False:
@@ -615,30 +725,23 @@ def _read_light_into(
             "all geometry (one warning per stage)",
         )
 
-    # -- flux, range --
-    _finish_photometry(lp, a, ctx)
 
-    if a.legacy:
-        names = ", ".join(sorted(set(a.legacy)))
-        _warn(lp, ctx, f"legacy un-namespaced attributes ({names}); use 'inputs:<name>'")
-
+def _check_peak_intensity(lp: LightPrim, ctx: LightReadContext) -> bool:
+    """False (with a warning) when the intensity overflowed or a local light's peak
+    exceeds ``limits.MAX_INTENSITY_CD``."""
     imax = max(float(lp.intensity[0]), float(lp.intensity[1]), float(lp.intensity[2]))
     if not (math.isfinite(imax) and imax >= 0):
-        ok = False
         _warn(lp, ctx, "intensity overflowed to a non-finite value; light disabled")
-    elif (
-        t in prims.LOCAL_LIGHT_TYPES
-        and imax * lp.ies_scale > limits.MAX_INTENSITY_CD
-    ):
-        ok = False
+        return False
+    if lp.type in prims.LOCAL_LIGHT_TYPES and imax * lp.ies_scale > limits.MAX_INTENSITY_CD:
         _warn(
             lp,
             ctx,
             f"peak intensity {imax * lp.ies_scale:.3g} cd exceeds "
             f"{limits.MAX_INTENSITY_CD:.0e} cd; light disabled",
         )
-    lp.valid = bool(ok)
-    lp.enabled = bool(ok and visible)
+        return False
+    return True
 
 
 def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
@@ -658,8 +761,6 @@ def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     if not resolved:
         _warn(lp, ctx, f"IES file '{authored}' not found; rendering without a profile")
         return
-    from .ies import IesError
-
     try:
         prof = ctx.ies_loader(resolved)
     except IesError as exc:
@@ -675,9 +776,9 @@ def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     lp.ies_scale = mx / power if lp.ies_normalize else mx
 
 
-def _finish_photometry(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
-    """Luminous flux estimate and influence radius."""
-    iy = float(LUMA @ lp.intensity)
+def _finish_photometry(lp: LightPrim, a: _Attrs) -> None:
+    """Luminous flux estimate and influence radius (``stb:range`` when authored)."""
+    iy = float(_LUMA @ lp.intensity)
     if lp.type in prims.LOCAL_LIGHT_TYPES:
         integ, peak = _shape_integral(
             lp.emission,
@@ -729,7 +830,7 @@ def _mesh_center(prim: Usd.Prim, world: np.ndarray) -> np.ndarray | None:
 _dome_avg_cache: dict[str, np.ndarray] = {}
 
 
-def _dome_texture_average(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx) -> np.ndarray:
+def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
     """Solid-angle-weighted mean RGB of a lat-long dome texture (1 without one)."""
     asset = a.get("inputs:texture:file", None)
     if asset is None or not getattr(asset, "path", ""):

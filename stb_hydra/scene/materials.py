@@ -2,10 +2,13 @@
 
 Only constant inputs are read. An input driven by a texture reader uses the
 reader's ``inputs:fallback`` (or the UsdPreviewSurface default) and the
-material records a warning; MaterialX-only materials fall back to defaults.
+material records a warning; MaterialX-only materials fall back to defaults
+(``MaterialPrim.uses_defaults``, with a warning).
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from pxr import Sdf, Usd, UsdShade
@@ -24,7 +27,11 @@ _DEFAULTS = {
 }
 
 
-def _input_value(shader: UsdShade.Shader, name: str, time: Usd.TimeCode, warnings: list[str]):
+def _input_value(
+    shader: UsdShade.Shader, name: str, time: Usd.TimeCode, warnings: list[str]
+) -> Any:
+    """Constant value of input ``name``: authored, a connected reader's fallback, or the
+    UsdPreviewSurface default (a connection adds a warning)."""
     inp = shader.GetInput(name)
     if not inp:
         return _DEFAULTS[name]
@@ -46,7 +53,7 @@ def _input_value(shader: UsdShade.Shader, name: str, time: Usd.TimeCode, warning
     return _DEFAULTS[name] if v is None else v
 
 
-def _color(v) -> np.ndarray:
+def _color(v: Any) -> np.ndarray:
     arr = np.asarray(v, dtype=np.float64).reshape(-1)
     if arr.size < 3:
         arr = np.full(3, float(arr[0]) if arr.size else 0.0)
@@ -54,7 +61,7 @@ def _color(v) -> np.ndarray:
     return np.maximum(arr, 0.0)
 
 
-def _scalar(v, lo: float, hi: float, default: float) -> float:
+def _scalar(v: Any, lo: float, hi: float, default: float) -> float:
     try:
         f = float(v)
     except (TypeError, ValueError):
@@ -64,24 +71,34 @@ def _scalar(v, lo: float, hi: float, default: float) -> float:
     return min(max(f, lo), hi)
 
 
-def read_material(prim: Usd.Prim, time: Usd.TimeCode) -> MaterialPrim:
-    mp = MaterialPrim(path=str(prim.GetPath()))
-    mat = UsdShade.Material(prim)
-    shader = None
+def _surface_shader(mat: UsdShade.Material) -> UsdShade.Shader | None:
+    """The material's surface shader, or None when there is none (or it is unreadable)."""
     try:
         src = mat.ComputeSurfaceSource()
         shader = src[0] if src and src[0] else None
     except Exception:  # noqa: BLE001 - bad input must never crash
-        shader = None
+        return None
     if shader is None or not shader.GetPrim().IsValid():
-        mp.warnings.append(f"material <{mp.path}>: no UsdPreviewSurface surface; using defaults")
-        return mp
+        return None
+    return shader
+
+
+def _use_defaults(mp: MaterialPrim, why: str) -> MaterialPrim:
+    """Mark ``mp`` as defaults-only (``uses_defaults``) with a warning saying why."""
+    mp.uses_defaults = True
+    mp.warnings.append(f"material <{mp.path}>: {why}; using defaults")
+    return mp
+
+
+def read_material(prim: Usd.Prim, time: Usd.TimeCode) -> MaterialPrim:
+    """Constant UsdPreviewSurface inputs of a material; ``uses_defaults`` without one."""
+    mp = MaterialPrim(path=str(prim.GetPath()))
+    shader = _surface_shader(UsdShade.Material(prim))
+    if shader is None:
+        return _use_defaults(mp, "no UsdPreviewSurface surface")
     sid = shader.GetShaderId()
     if sid != "UsdPreviewSurface":
-        mp.warnings.append(
-            f"material <{mp.path}>: surface shader '{sid}' is not UsdPreviewSurface; using defaults"
-        )
-        return mp
+        return _use_defaults(mp, f"surface shader '{sid}' is not UsdPreviewSurface")
     w: list[str] = []
     mp.diffuse_color = _color(_input_value(shader, "diffuseColor", time, w))
     mp.roughness = _scalar(_input_value(shader, "roughness", time, w), 0.0, 1.0, 0.5)

@@ -8,6 +8,7 @@ Matrices are row-vector (USD) convention: ``p_world = p_local @ M``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,6 +43,15 @@ LOCAL_LIGHT_TYPES = (SPHERE_LIGHT, DISK_LIGHT, RECT_LIGHT, CYLINDER_LIGHT, MESH_
 EMIT_ISOTROPIC = 0  # sphere, mesh: I(w) = I0
 EMIT_COSINE = 1  # disk, rect: one-sided, I(w) = I0 * max(0, cos theta)
 EMIT_CYLINDER = 2  # cylinder side: I(w) = I0 * sin(angle to the X axis)
+
+#: Cone half-angle (degrees) that cuts nothing: ShapingAPI's widest cone, and the
+#: ``cone_angle`` of a light without one (``has_cone`` False).
+NO_CONE_ANGLE_DEG = 180.0
+#: Cone cut-off (radians from the axis) of a light without a cone: the whole sphere.
+NO_CONE_CUTOFF_RAD = math.pi
+#: A stored cut-off (radians) below this is a real cone: ``NO_CONE_CUTOFF_RAD`` less a
+#: margin that survives float32 storage (the renderer's light table and GLSL ``cone.y``).
+CONE_CUTOFF_TEST_RAD = 3.14159
 
 SHADOW_STATIC = "static"
 SHADOW_DYNAMIC = "dynamic"
@@ -100,7 +110,7 @@ class LightPrim:
     length: float = 0.0
     # ShapingAPI.
     has_cone: bool = False
-    cone_angle: float = 180.0  # degrees, half angle
+    cone_angle: float = NO_CONE_ANGLE_DEG  # degrees, half angle
     cone_softness: float = 0.0
     focus: float = 0.0
     focus_tint: np.ndarray = field(default_factory=lambda: _ZERO3)
@@ -189,6 +199,9 @@ class MaterialPrim:
     use_specular_workflow: bool = False
     specular_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
     ior: float = 1.5
+    #: No readable UsdPreviewSurface surface: every value above is a default and a
+    #: renderer should use the mesh's display colour instead (``warnings`` says why).
+    uses_defaults: bool = False
     warnings: list[str] = field(default_factory=list)
 
 
@@ -214,8 +227,3 @@ class CameraPrim:
     @property
     def aspect(self) -> float:
         return float(self.horizontal_aperture / max(self.vertical_aperture, 1e-9))
-
-    @property
-    def vertical_fov(self) -> float:
-        """Full vertical field of view in radians (perspective)."""
-        return float(2.0 * np.arctan(0.5 * self.vertical_aperture / max(self.focal_length, 1e-9)))

@@ -18,7 +18,8 @@ import numpy as np
 from pxr import Sdf, Usd
 
 from .. import limits
-from ..scene.lights import _LEGACY_INPUTS, ies_theta
+from ..scene.ies import IesError, IesProfile
+from ..scene.lights import LEGACY_INPUTS, ies_theta, load_ies_cached
 from .common import all_finite, authored_values, components, finding, fmt_times, fmt_value
 from .findings import Finding
 
@@ -117,7 +118,7 @@ def check_light_values(prim: Usd.Prim) -> list[Finding]:
                 f"{a.GetName()} = {fmt_value(v0)}: {problem} at {fmt_times(t for t, _ in hits)}"
                 f"{more}",
             ))
-    legacy = sorted(n for n in names if n in _LEGACY_INPUTS)
+    legacy = sorted(n for n in names if n in LEGACY_INPUTS)
     if legacy:
         pairs = ", ".join(f"'{n}' -> 'inputs:{n}'" for n in legacy)
         out.append(finding(
@@ -132,7 +133,7 @@ def check_light_values(prim: Usd.Prim) -> list[Finding]:
 _NT, _NP = 256, 32
 
 
-def _downwardness(prof, angle_scale: float) -> tuple[float, float, float]:
+def _downwardness(prof: IesProfile, angle_scale: float) -> tuple[float, float, float]:
     """(share of the raw profile's flux below the horizon, flux-weighted mean of
     cos(theta from nadir) of the raw profile, the same after the angleScale remap).
 
@@ -167,9 +168,6 @@ def _asset_values(a: Usd.Attribute) -> list[tuple[float | None, str, str]]:
 
 def check_ies(prim: Usd.Prim) -> list[Finding]:
     """IesProfile validator body."""
-    from ..scene.ies import IesError
-    from ..scene.lights import _load_ies_cached
-
     names = set(prim.GetAuthoredPropertyNames())
     fa = _attr(prim, names, "shaping:ies:file")
     if fa is None:
@@ -190,7 +188,7 @@ def check_ies(prim: Usd.Prim) -> list[Finding]:
             ))
             continue
         try:
-            prof = _load_ies_cached(resolved)
+            prof = load_ies_cached(resolved)
         except IesError as exc:
             out.append(finding("ies_malformed", path, f"IES file '{authored}': {exc}"))
             continue
@@ -201,7 +199,7 @@ def check_ies(prim: Usd.Prim) -> list[Finding]:
             ))
             continue
         if sa is not None:
-            out.extend(_check_angle_scale(prim, path, fa, sa, authored, resolved, times, prof))
+            out.extend(_check_angle_scale(path, fa, sa, authored, resolved, times, prof))
     return out
 
 
@@ -210,7 +208,15 @@ def _scale_at(sa: Usd.Attribute, t: float | None) -> float:
     return float(v) if v is not None else 0.0
 
 
-def _check_angle_scale(prim, path, fa, sa, authored, resolved, file_times, prof):
+def _check_angle_scale(
+    path: str,
+    fa: Usd.Attribute,
+    sa: Usd.Attribute,
+    authored: str,
+    resolved: str,
+    file_times: list[float | None],
+    prof: IesProfile,
+) -> list[Finding]:
     """Pairs (file, angleScale) at every time either is authored."""
     scale_times = [t for t, _ in authored_values(sa)]
     file_t = set(file_times)
@@ -235,7 +241,7 @@ def _check_angle_scale(prim, path, fa, sa, authored, resolved, file_times, prof)
                 limits.VALIDATE_IES_DOWNLIGHT_KEEP_MIN * before
             ):
                 inverted.append((t, s))
-    out = []
+    out: list[Finding] = []
     if inverted:
         _, s0 = max(inverted, key=lambda x: x[1])
         share, before, after = share_cache[s0]
