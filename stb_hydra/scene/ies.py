@@ -398,19 +398,58 @@ def parse_ies(data: bytes | str, name: str = "<string>") -> IesProfile:
 
 
 def _parse(data: bytes | str, name: str) -> IesProfile:
+    """Parse LM-63 text: header lines, TILT block, luminaire numbers, angle and candela
+    tables; each step checks its own fields and collects non-fatal warnings."""
+    lines = _decode_lines(data, name)
+    tilt_at = next((i for i, ln in enumerate(lines) if _TILT.fullmatch(ln)), None)
+    if tilt_at is None:
+        raise IesError(f"{name}: no TILT= line (not an LM-63 file)")
+    warnings: list[str] = []
+    version, keywords, labels = _parse_header(lines[:tilt_at], warnings)
+    tilt_value = _TILT.fullmatch(lines[tilt_at]).group(1)
+    if not tilt_value:
+        raise IesError(f"{name}: empty TILT= value")
+    tilt = tilt_value.upper() if tilt_value.upper() in ("NONE", "INCLUDE") else tilt_value
+    t = _Tokens([s for s in _TOKEN_SPLIT.split("\n".join(lines[tilt_at + 1 :])) if s], name)
+    tilt_geometry, tilt_angles, tilt_factors = _parse_tilt(t, tilt, warnings)
+    lum = _parse_luminaire(t, warnings)
+    vertical = t.array(lum.n_v, "vertical angles")
+    horizontal = t.array(lum.n_h, "horizontal angles")
+    candela_raw = t.array(lum.n_v * lum.n_h, "candela values").reshape(lum.n_h, lum.n_v)
+    _check_angles(t, lum.ptype, vertical, horizontal, warnings)
+    _check_candela(t, candela_raw, lum.multiplier, lum.ballast)
+    if t.pos < len(t.tokens):
+        warnings.append(f"{len(t.tokens) - t.pos} extra token(s) after the candela table ignored")
+
+    return IesProfile(
+        name=name, version=version, keywords=keywords, labels=labels, tilt=tilt,
+        tilt_geometry=tilt_geometry, tilt_angles=tilt_angles, tilt_factors=tilt_factors,
+        n_lamps=lum.n_lamps, lumens_per_lamp=lum.lumens, multiplier=lum.multiplier,
+        photometric_type=lum.ptype, units_type=lum.units, width=lum.width,
+        length=lum.length, height=lum.height, ballast_factor=lum.ballast,
+        file_generation_type=lum.generation, input_watts=lum.watts,
+        vertical_angles=vertical, horizontal_angles=horizontal, candela_raw=candela_raw,
+        warnings=warnings,
+    )
+
+
+def _decode_lines(data: bytes | str, name: str) -> list[str]:
+    """Size-checked text (bytes as Latin-1, BOM dropped) split at any line ending."""
     if len(data) > IES_MAX_FILE_BYTES:
         raise IesError(f"{name}: {len(data)} bytes exceeds the {IES_MAX_FILE_BYTES}-byte limit")
     if isinstance(data, (bytes, bytearray, memoryview)):
         text = bytes(data).removeprefix(b"\xef\xbb\xbf").decode("latin-1")
     else:
         text = str(data).removeprefix("\ufeff")
-    lines = _LINE_SPLIT.split(text)
-    tilt_at = next((i for i, ln in enumerate(lines) if _TILT.fullmatch(ln)), None)
-    if tilt_at is None:
-        raise IesError(f"{name}: no TILT= line (not an LM-63 file)")
-    warnings: list[str] = []
+    return _LINE_SPLIT.split(text)
 
-    header = [ln for ln in lines[:tilt_at] if ln.strip()]
+
+def _parse_header(
+    lines: list[str], warnings: list[str]
+) -> tuple[str, dict[str, str], list[str]]:
+    """(version, keywords, labels) from the lines before TILT=. Repeated keywords and
+    ``[MORE]`` continue the previous value on a new line; other lines are labels."""
+    header = [ln for ln in lines if ln.strip()]
     version = None
     if header:
         version, warn = _detect_version(header[0])
@@ -441,27 +480,51 @@ def _parse(data: bytes | str, name: str) -> IesProfile:
             continue
         keywords[key] = keywords[key] + "\n" + value if key in keywords else value
         last_key = key
+    return version, keywords, labels
 
-    tilt_value = _TILT.fullmatch(lines[tilt_at]).group(1)
-    if not tilt_value:
-        raise IesError(f"{name}: empty TILT= value")
-    tilt = tilt_value.upper() if tilt_value.upper() in ("NONE", "INCLUDE") else tilt_value
-    t = _Tokens([s for s in _TOKEN_SPLIT.split("\n".join(lines[tilt_at + 1 :])) if s], name)
 
-    tilt_geometry = tilt_angles = tilt_factors = None
-    if tilt == "INCLUDE":
-        tilt_geometry = t.integer("TILT lamp-to-luminaire geometry")
-        if tilt_geometry not in (1, 2, 3):
-            warnings.append(f"TILT lamp-to-luminaire geometry {tilt_geometry} is not 1, 2 or 3")
-        n_tilt = t.integer("TILT pair count", 1, IES_MAX_TILT_PAIRS)
-        tilt_angles = t.array(n_tilt, "TILT angles")
-        tilt_factors = t.array(n_tilt, "TILT factors")
-        _check_increasing(t, tilt_angles, "TILT angles")
-        if np.any(tilt_factors < 0.0):
-            raise t.error("negative TILT multiplying factor")
-    elif tilt != "NONE":
-        warnings.append(f"TILT file {tilt[:60]!r} not read: tilt factors ignored")
+def _parse_tilt(
+    t: _Tokens, tilt: str, warnings: list[str]
+) -> tuple[int | None, np.ndarray | None, np.ndarray | None]:
+    """(lamp-to-luminaire geometry, angles, factors) of ``TILT=INCLUDE`` data; Nones for
+    ``NONE`` or a TILT file name (not read)."""
+    if tilt != "INCLUDE":
+        if tilt != "NONE":
+            warnings.append(f"TILT file {tilt[:60]!r} not read: tilt factors ignored")
+        return None, None, None
+    geometry = t.integer("TILT lamp-to-luminaire geometry")
+    if geometry not in (1, 2, 3):
+        warnings.append(f"TILT lamp-to-luminaire geometry {geometry} is not 1, 2 or 3")
+    n_tilt = t.integer("TILT pair count", 1, IES_MAX_TILT_PAIRS)
+    angles = t.array(n_tilt, "TILT angles")
+    factors = t.array(n_tilt, "TILT factors")
+    _check_increasing(t, angles, "TILT angles")
+    if np.any(factors < 0.0):
+        raise t.error("negative TILT multiplying factor")
+    return geometry, angles, factors
 
+
+@dataclass(frozen=True)
+class _Luminaire:
+    """The 13 numbers between the TILT block and the angle lists."""
+
+    n_lamps: int
+    lumens: float
+    multiplier: float
+    n_v: int
+    n_h: int
+    ptype: int
+    units: int
+    width: float
+    length: float
+    height: float
+    ballast: float
+    generation: float
+    watts: float
+
+
+def _parse_luminaire(t: _Tokens, warnings: list[str]) -> _Luminaire:
+    """Lamp, photometric-type, size and ballast numbers, range-checked."""
     n_lamps = t.integer("number of lamps", 1, 1_000_000)
     lumens = t.number("lumens per lamp")
     multiplier = t.number("candela multiplier")
@@ -479,11 +542,15 @@ def _parse(data: bytes | str, name: str) -> IesProfile:
         warnings.append(f"units type {units} is neither 1 (feet) nor 2 (metres)")
     if multiplier < 0.0 or ballast < 0.0:
         raise t.error(f"negative candela multiplier ({multiplier:g}) or ballast ({ballast:g})")
+    return _Luminaire(n_lamps, lumens, multiplier, n_v, n_h, ptype, units, width, length,
+                      height, ballast, generation, watts)
 
-    vertical = t.array(n_v, "vertical angles")
-    horizontal = t.array(n_h, "horizontal angles")
-    candela_raw = t.array(n_v * n_h, "candela values").reshape(n_h, n_v)
 
+def _check_angles(
+    t: _Tokens, ptype: int, vertical: np.ndarray, horizontal: np.ndarray, warnings: list[str]
+) -> None:
+    """Angle lists strictly increasing and within the photometric type's ranges; warn
+    about non-standard (but usable) spans."""
     _check_increasing(t, vertical, "vertical angles")
     _check_increasing(t, horizontal, "horizontal angles")
     if ptype == TYPE_C:
@@ -503,25 +570,18 @@ def _parse(data: bytes | str, name: str) -> IesProfile:
             standard = _near(a[-1], 90.0) and (_near(a[0], 0.0) or _near(a[0], -90.0))
             if not standard:
                 warnings.append(f"{kind} {what} angles {a[0]:g}..{a[-1]:g} are not -90|0..90")
-    if n_v == 1:
+    if vertical.size == 1:
         warnings.append("single vertical angle: the profile is zero almost everywhere")
+
+
+def _check_candela(t: _Tokens, candela_raw: np.ndarray, multiplier: float, ballast: float) -> None:
+    """No negative value; the peak (multiplier and ballast applied) within
+    ``MAX_INTENSITY_CD``."""
     if np.any(candela_raw < 0.0):
         raise t.error(f"negative candela value {candela_raw.min():g}")
     peak = float(candela_raw.max()) * multiplier * ballast
     if not peak <= MAX_INTENSITY_CD:
         raise t.error(f"peak intensity {peak:g} cd exceeds {MAX_INTENSITY_CD:g} cd")
-    if t.pos < len(t.tokens):
-        warnings.append(f"{len(t.tokens) - t.pos} extra token(s) after the candela table ignored")
-
-    return IesProfile(
-        name=name, version=version, keywords=keywords, labels=labels, tilt=tilt,
-        tilt_geometry=tilt_geometry, tilt_angles=tilt_angles, tilt_factors=tilt_factors,
-        n_lamps=n_lamps, lumens_per_lamp=lumens, multiplier=multiplier,
-        photometric_type=ptype, units_type=units, width=width, length=length, height=height,
-        ballast_factor=ballast, file_generation_type=generation, input_watts=watts,
-        vertical_angles=vertical, horizontal_angles=horizontal, candela_raw=candela_raw,
-        warnings=warnings,
-    )
 
 
 def load_ies(path: str | os.PathLike) -> IesProfile:
