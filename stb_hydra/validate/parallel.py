@@ -109,50 +109,121 @@ def run_parallel(
 ) -> list[AssetReport]:
     """Validate ``(path, library_root)`` tasks in ``jobs`` worker processes; reports in
     task order."""
-    from .runner import crash_report
+    pool = _Pool(tasks, rules, thumbnails, timeout_s, on_done)
+    try:
+        pool.run(max(1, min(jobs, len(tasks))))
+    finally:
+        pool.close()
+    return pool.reports()
 
-    ctx = mp.get_context("spawn")
-    results: list[AssetReport | None] = [None] * len(tasks)
-    pending = list(range(len(tasks)))[::-1]
-    logdir = tempfile.mkdtemp(prefix="stb-validate-")
-    workers: list[_Worker] = []
-    serial = 0
-    start_failures = 0
 
-    def spawn() -> _Worker:
-        nonlocal serial
-        serial += 1
-        parent, child = ctx.Pipe()
-        log = os.path.join(logdir, f"worker{serial}.log")
-        p = ctx.Process(target=_worker_main, args=(child, log, rules, thumbnails),
-                        name=f"stb-validate-{serial}", daemon=True)
+class _Pool:
+    """The workers of one :func:`run_parallel` call, its task queue and its results."""
+
+    def __init__(
+        self,
+        tasks: Sequence[tuple[str, str]],
+        rules: list[str] | None,
+        thumbnails: bool,
+        timeout_s: float,
+        on_done: Callable[[AssetReport], None] | None,
+    ) -> None:
+        self.ctx = mp.get_context("spawn")
+        self.tasks = tasks
+        self.rules = rules
+        self.thumbnails = thumbnails
+        self.timeout_s = timeout_s
+        self.on_done = on_done
+        self.results: list[AssetReport | None] = [None] * len(tasks)
+        self.pending = list(range(len(tasks)))[::-1]  # next task last: pop()
+        self.logdir = tempfile.mkdtemp(prefix="stb-validate-")
+        self.workers: list[_Worker] = []
+        self.serial = 0
+        self.start_failures = 0
+
+    def run(self, n_workers: int) -> None:
+        """Start ``n_workers`` and serve them until every task has a report."""
+        self.workers = [self._spawn() for _ in range(n_workers)]
+        while any(r is None for r in self.results):
+            for w in self._wait():
+                self._serve(w)
+            self._reap_timeouts()
+            if not self.pending and all(w.task < 0 for w in self.workers) and any(
+                r is None for r in self.results
+            ):
+                break  # defensive: nothing in flight yet results missing
+
+    def reports(self) -> list[AssetReport]:
+        """Reports in task order; a task that never ran gets a ``not validated`` crash."""
+        from .runner import crash_report
+
+        return [
+            r if r is not None else crash_report(self.tasks[i][0], self.tasks[i][1],
+                                                 "not validated")
+            for i, r in enumerate(self.results)
+        ]
+
+    def close(self) -> None:
+        """Stop every worker (politely, then by force) and delete their logs."""
+        for w in self.workers:
+            try:
+                w.conn.send(None)
+            except (OSError, ValueError):
+                pass
+        for w in self.workers:
+            w.proc.join(5)
+            if w.proc.is_alive():
+                w.proc.kill()
+                w.proc.join(1)
+        for name in os.listdir(self.logdir):
+            try:
+                os.unlink(os.path.join(self.logdir, name))
+            except OSError:
+                pass
+        try:
+            os.rmdir(self.logdir)
+        except OSError:
+            pass
+
+    # -- steps ------------------------------------------------------------------------------
+
+    def _spawn(self) -> _Worker:
+        self.serial += 1
+        parent, child = self.ctx.Pipe()
+        log = os.path.join(self.logdir, f"worker{self.serial}.log")
+        p = self.ctx.Process(target=_worker_main, args=(child, log, self.rules, self.thumbnails),
+                             name=f"stb-validate-{self.serial}", daemon=True)
         p.start()
         child.close()
         return _Worker(p, parent, log)
 
-    def finish(i: int, rep: AssetReport) -> None:
-        results[i] = rep
-        if on_done is not None:
-            on_done(rep)
+    def _finish(self, i: int, rep: AssetReport) -> None:
+        self.results[i] = rep
+        if self.on_done is not None:
+            self.on_done(rep)
 
-    def dispatch(w: _Worker) -> None:
-        if not pending or not w.ready:
+    def _dispatch(self, w: _Worker) -> None:
+        """Send the next pending task to ``w`` once it is ready."""
+        if not self.pending or not w.ready:
             return
-        i = pending.pop()
+        i = self.pending.pop()
         w.task, w.started = i, time.monotonic()
         try:
             w.log_offset = os.path.getsize(w.log)
         except OSError:
             w.log_offset = 0
-        w.conn.send(tasks[i])
+        w.conn.send(self.tasks[i])
 
-    def fail(w: _Worker, why: str) -> None:
+    def _fail(self, w: _Worker, why: str) -> None:
+        """Report ``w``'s asset (if any) as a crash quoting its stderr, then kill ``w``."""
+        from .runner import crash_report
+
         if w.task >= 0:
-            path, root = tasks[w.task]
+            path, root = self.tasks[w.task]
             tail = _log_tail(w.log, w.log_offset)
             msg = f"worker {why} while validating this asset" + (f"; stderr: {tail}" if tail
                                                                  else "")
-            finish(w.task, crash_report(path, root, msg, time.monotonic() - w.started))
+            self._finish(w.task, crash_report(path, root, msg, time.monotonic() - w.started))
             w.task = -1
         try:
             w.proc.kill()
@@ -161,79 +232,60 @@ def run_parallel(
         w.proc.join(5)
         w.conn.close()
 
-    try:
-        n = max(1, min(jobs, len(tasks)))
-        workers = [spawn() for _ in range(n)]
-        while any(r is None for r in results):
-            waitables = {}
-            for w in workers:
-                waitables[w.conn] = w
-                waitables[w.proc.sentinel] = w
-            deadline = min((w.started + timeout_s for w in workers if w.task >= 0),
-                           default=None)
-            wait_s = None if deadline is None else max(0.0, deadline - time.monotonic())
-            ready = wait(list(waitables), timeout=wait_s)
-            handled: set[int] = set()
-            for obj in ready:
-                w = waitables[obj]
-                if id(w) in handled:
-                    continue
-                handled.add(id(w))
+    def _wait(self) -> list[_Worker]:
+        """Workers with a message or a dead process, once each; waits until one is or
+        the earliest per-asset deadline passes."""
+        waitables: dict[object, _Worker] = {}
+        for w in self.workers:
+            waitables[w.conn] = w
+            waitables[w.proc.sentinel] = w
+        deadline = min((w.started + self.timeout_s for w in self.workers if w.task >= 0),
+                       default=None)
+        wait_s = None if deadline is None else max(0.0, deadline - time.monotonic())
+        ready = wait(list(waitables), timeout=wait_s)
+        out: dict[int, _Worker] = {}
+        for obj in ready:
+            w = waitables[obj]
+            out.setdefault(id(w), w)
+        return list(out.values())
+
+    def _serve(self, w: _Worker) -> None:
+        """Handle ``w``'s ready signal or report, or replace it when it died."""
+        msg = None
+        if w.conn.poll():
+            try:
+                msg = w.conn.recv()
+            except (EOFError, OSError):
                 msg = None
-                if w.conn.poll():
-                    try:
-                        msg = w.conn.recv()
-                    except (EOFError, OSError):
-                        msg = None
-                if isinstance(msg, dict) and msg.get("ready"):
-                    w.ready = True
-                    dispatch(w)
-                    continue
-                if isinstance(msg, dict) and w.task >= 0:
-                    finish(w.task, AssetReport.from_dict(msg))
-                    w.task = -1
-                    dispatch(w)
-                    continue
-                if not w.proc.is_alive() or msg is None:
-                    w.proc.join(1)
-                    if not w.ready:
-                        start_failures += 1
-                        if start_failures >= _MAX_START_FAILURES:
-                            tail = _log_tail(w.log, 0)
-                            raise WorkerStartError(
-                                f"validation worker failed to start "
-                                f"({_exit_text(w.proc.exitcode)}): {tail}"
-                            )
-                    fail(w, _exit_text(w.proc.exitcode))
-                    workers[workers.index(w)] = spawn()
-            now = time.monotonic()
-            for k, w in enumerate(workers):
-                if w.task >= 0 and now - w.started > timeout_s:
-                    fail(w, f"timed out after {timeout_s:g} s")
-                    workers[k] = spawn()
-            if not pending and all(w.task < 0 for w in workers) and any(
-                r is None for r in results
-            ):
-                break  # defensive: nothing in flight yet results missing
-    finally:
-        for w in workers:
-            try:
-                w.conn.send(None)
-            except (OSError, ValueError):
-                pass
-        for w in workers:
-            w.proc.join(5)
-            if w.proc.is_alive():
-                w.proc.kill()
-                w.proc.join(1)
-        for name in os.listdir(logdir):
-            try:
-                os.unlink(os.path.join(logdir, name))
-            except OSError:
-                pass
-        try:
-            os.rmdir(logdir)
-        except OSError:
-            pass
-    return [r if r is not None else crash_report(tasks[i][0], tasks[i][1], "not validated")
-            for i, r in enumerate(results)]
+        if isinstance(msg, dict) and msg.get("ready"):
+            w.ready = True
+            self._dispatch(w)
+            return
+        if isinstance(msg, dict) and w.task >= 0:
+            self._finish(w.task, AssetReport.from_dict(msg))
+            w.task = -1
+            self._dispatch(w)
+            return
+        if not w.proc.is_alive() or msg is None:
+            w.proc.join(1)
+            if not w.ready:
+                self._count_start_failure(w)
+            self._fail(w, _exit_text(w.proc.exitcode))
+            self.workers[self.workers.index(w)] = self._spawn()
+
+    def _count_start_failure(self, w: _Worker) -> None:
+        """Raise WorkerStartError once ``_MAX_START_FAILURES`` workers died unready."""
+        self.start_failures += 1
+        if self.start_failures >= _MAX_START_FAILURES:
+            tail = _log_tail(w.log, 0)
+            raise WorkerStartError(
+                f"validation worker failed to start ({_exit_text(w.proc.exitcode)}): {tail}"
+            )
+
+    def _reap_timeouts(self) -> None:
+        """Crash-report and replace every worker past the per-asset timeout."""
+        now = time.monotonic()
+        for k, w in enumerate(self.workers):
+            if w.task >= 0 and now - w.started > self.timeout_s:
+                self._fail(w, f"timed out after {self.timeout_s:g} s")
+                self.workers[k] = self._spawn()
