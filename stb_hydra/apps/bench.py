@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .common import EXIT_OK, CliError, fail
+from .common import EXIT_OK, CliError, fail, parse_options, parse_value
 
 DEFAULT_METHODS = "stb,reference,sun"
 DEFAULT_SIZE = (745, 360)  # the talk's Adreno 610 resolution
@@ -96,37 +96,6 @@ class SceneCase:
 
 def _fmt(v: Any) -> str:
     return "none" if v is None else str(v).lower() if isinstance(v, bool) else str(v)
-
-
-def parse_value(text: str) -> Any:
-    """``'4'`` -> 4, ``'0.1'`` -> 0.1, ``true/false`` -> bool, ``none`` -> None, else str."""
-    t = text.strip()
-    low = t.lower()
-    if low in ("true", "yes", "on"):
-        return True
-    if low in ("false", "no", "off"):
-        return False
-    if low in ("none", "null"):
-        return None
-    for conv in (int, float):
-        try:
-            return conv(t)
-        except ValueError:
-            pass
-    return t
-
-
-def parse_options(text: str, where: str) -> dict[str, Any]:
-    """``'N=4,K=16'`` -> {'N': 4, 'K': 16}."""
-    out: dict[str, Any] = {}
-    for item in (s.strip() for s in text.split(",")):
-        if not item:
-            continue
-        key, sep, val = item.partition("=")
-        if not sep or not key.strip():
-            raise CliError(f"bad option '{item}' in {where}: use key=value")
-        out[key.strip()] = parse_value(val)
-    return out
 
 
 def parse_size(text: str) -> tuple[int, int]:

@@ -1,9 +1,13 @@
-"""Shared helpers of the CLI verbs: stage opening with clean errors, exit codes."""
+"""Shared helpers of the CLI verbs: stage opening with clean errors, exit codes, options."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
+
+from ..scene.stage_io import StageOpenError
+from ..scene.stage_io import open_stage as _open_stage
 
 EXIT_OK = 0
 EXIT_FINDINGS = 1
@@ -15,33 +19,45 @@ class CliError(Exception):
 
 
 def open_stage(path: str | Path):
-    """Open a USD stage or raise :class:`CliError` with a one-line message."""
-    from pxr import Tf, Usd
-
-    import stb_hydra  # noqa: F401  (schema registration before the stage opens)
-
-    p = Path(path)
-    if not p.exists():
-        raise CliError(f"cannot open stage '{path}': file not found")
+    """Open a USD stage or raise :class:`CliError` with a one-line message
+    (:func:`stb_hydra.scene.stage_io.open_stage`, its error as the CLI's)."""
     try:
-        stage = Usd.Stage.Open(str(p))
-    except Tf.ErrorException as exc:
-        raise CliError(f"cannot open stage '{path}': {tf_message(exc)}") from None
-    if stage is None:
-        raise CliError(f"cannot open stage '{path}': not a USD file")
-    return stage
-
-
-def tf_message(exc: BaseException) -> str:
-    """The human part of a Tf.ErrorException ("Error in 'X' at line N in file F : 'msg'")."""
-    import re
-
-    lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
-    text = lines[0] if lines else "unknown error"
-    m = re.search(r" : '(.*)'$", text)
-    return m.group(1) if m else text
+        return _open_stage(path)
+    except StageOpenError as exc:
+        raise CliError(str(exc)) from None
 
 
 def fail(msg: str) -> int:
     print(f"stb: error: {msg}", file=sys.stderr)
     return EXIT_ERROR
+
+
+def parse_value(text: str) -> Any:
+    """``'4'`` -> 4, ``'0.1'`` -> 0.1, ``true/false`` -> bool, ``none`` -> None, else str."""
+    t = text.strip()
+    low = t.lower()
+    if low in ("true", "yes", "on"):
+        return True
+    if low in ("false", "no", "off"):
+        return False
+    if low in ("none", "null"):
+        return None
+    for conv in (int, float):
+        try:
+            return conv(t)
+        except ValueError:
+            pass
+    return t
+
+
+def parse_options(text: str, where: str) -> dict[str, Any]:
+    """``'N=4,K=16'`` -> {'N': 4, 'K': 16}."""
+    out: dict[str, Any] = {}
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        key, sep, val = item.partition("=")
+        if not sep or not key.strip():
+            raise CliError(f"bad option '{item}' in {where}: use key=value")
+        out[key.strip()] = parse_value(val)
+    return out

@@ -18,7 +18,7 @@ import sys
 import time as _time
 
 from .. import limits
-from .common import EXIT_ERROR, EXIT_OK, CliError, fail, open_stage
+from .common import EXIT_ERROR, EXIT_OK, CliError, fail, open_stage, parse_options
 
 
 def parse_frames(spec: str) -> list[float]:
@@ -112,14 +112,24 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..io.images import (
-        ImageWriteError,
-        check_output_path,
-        frame_path,
-        has_frame_placeholder,
-    )
+    aovs = _check_settings(args)
+    frames = _check_outputs(args)
+    stage = open_stage(args.scene)
+    pipeline = _color_pipeline(args)
+    settings = _render_settings(args)
+    eng = _build_engine(stage, settings, pipeline, frames[0])
+    if args.verbose:
+        print(f"stb render: {eng.renderer_info}", file=sys.stderr)
+    ext = os.path.splitext(args.output)[1].lower()
+    want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
+    eng.request_aovs(want)
+    stats = _stats_header(args, eng, settings, pipeline)
+    written = _render_frames(args, eng, frames, aovs, ext, pipeline, stats)
+    return _finish(args, stats, written)
 
-    # -- argument checks before any work --
+
+def _check_settings(args: argparse.Namespace) -> list[str]:
+    """Argument checks before any work; the requested AOV names."""
     if args.width <= 0 or args.height < 0:
         raise CliError("--width and --height must be positive")
     if args.accumulate < 1:
@@ -135,18 +145,29 @@ def _run(args: argparse.Namespace) -> int:
         check_debug_aovs(aovs, args.lighting)
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    return aovs
+
+
+def _check_outputs(args: argparse.Namespace) -> list[float | None]:
+    """OUTPUT is writable and names every frame; the frames to render (``[None]``: the
+    stage's default time)."""
+    from ..io.images import ImageWriteError, check_output_path, has_frame_placeholder
+
     try:
         check_output_path(args.output)
     except (ImageWriteError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    frames = parse_frames(args.frames) if args.frames else [None]
+    frames: list[float | None] = parse_frames(args.frames) if args.frames else [None]
     if len(frames) > 1 and not has_frame_placeholder(args.output):
         raise CliError("several --frames need a frame placeholder (####) in OUTPUT")
-    stage = open_stage(args.scene)
+    return frames
+
+
+def _color_pipeline(args: argparse.Namespace):
     from ..color.ocio import ColorPipeline
 
     try:
-        pipeline = ColorPipeline(
+        return ColorPipeline(
             config_path=args.ocio_config,
             display=args.display,
             view=args.view,
@@ -155,10 +176,10 @@ def _run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise CliError(str(exc)) from None
 
-    from ..renderer.engine import Engine, RenderError
+
+def _render_settings(args: argparse.Namespace):
+    """``RenderSettings`` from the flags (method options checked here)."""
     from ..renderer.frame import RenderSettings
-    from ..renderer.gl import GLError
-    from .bench import parse_options
 
     options: dict = {}
     for text in args.option:
@@ -171,7 +192,7 @@ def _run(args: argparse.Namespace) -> int:
         args.atlas_size < 256 or args.atlas_size & (args.atlas_size - 1)
     ):
         raise CliError(f"--atlas-size must be a power of two >= 256, got {args.atlas_size}")
-    settings = RenderSettings(
+    return RenderSettings(
         width=args.width,
         height=args.height or None,
         camera=args.camera,
@@ -192,17 +213,21 @@ def _run(args: argparse.Namespace) -> int:
         shadow_filter=args.shadow_filter,
         method_options=options,
     )
+
+
+def _build_engine(stage, settings, pipeline, first: float | None):
+    from ..renderer.engine import Engine, RenderError
+    from ..renderer.gl import GLError
+
     try:
-        first = frames[0]
-        eng = Engine(stage, settings, color=pipeline, time=first)
+        return Engine(stage, settings, color=pipeline, time=first)
     except (RenderError, GLError, ValueError) as exc:
         raise CliError(str(exc)) from None
-    if args.verbose:
-        print(f"stb render: {eng.renderer_info}", file=sys.stderr)
-    ext = os.path.splitext(args.output)[1].lower()
-    want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
-    eng.request_aovs(want)
-    stats: dict = {
+
+
+def _stats_header(args: argparse.Namespace, eng, settings, pipeline) -> dict:
+    """The ``--stats`` document before any frame (also the images' metadata)."""
+    return {
         "scene": args.scene,
         "renderer": eng.renderer_info,
         "settings": {
@@ -218,7 +243,15 @@ def _run(args: argparse.Namespace) -> int:
         },
         "frames": [],
     }
-    todo = frames
+
+
+def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
+                   stats: dict) -> int:
+    """Render and write every frame (``stats["frames"]``, then ``stats["warnings"]``);
+    releases the engine. Returns the number of frames written."""
+    from ..io.images import ImageWriteError, frame_path
+    from ..renderer.engine import RenderError
+
     progress = None
     if len(frames) > 1:
         from tqdm import tqdm
@@ -226,7 +259,7 @@ def _run(args: argparse.Namespace) -> int:
         progress = tqdm(total=len(frames), unit="frame", disable=None, file=sys.stderr)
     written = 0
     try:
-        for fr in todo:
+        for fr in frames:
             out = frame_path(args.output, fr) if fr is not None else args.output
             if args.skip_existing and os.path.exists(out):
                 if progress:
@@ -265,8 +298,13 @@ def _run(args: argparse.Namespace) -> int:
         warnings = list(eng.warnings)
         eng.release()
     stats["warnings"] = warnings
+    return written
+
+
+def _finish(args: argparse.Namespace, stats: dict, written: int) -> int:
+    """Warnings (``--verbose``), the ``--stats`` file and the exit code."""
     if args.verbose:
-        for w in warnings:
+        for w in stats["warnings"]:
             print(f"warning: {w}", file=sys.stderr)
     if args.stats:
         _write_json_atomic(args.stats, stats)
