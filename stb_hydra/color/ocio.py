@@ -478,6 +478,16 @@ class ColorCorrectionPass:
         """The full fragment shader (OCIO-generated function + our main)."""
         return self._gpu.fragment_source
 
+    @property
+    def program(self) -> moderngl.Program:
+        """The compiled program, shared by every pass of this context and pipeline key."""
+        return self._gpu.program
+
+    @property
+    def lut_textures(self) -> list[Any]:
+        """The LUT textures OCIO asked for (3D ones first), bound after the source image."""
+        return [tex for _, tex in self._gpu.textures]
+
     def _framebuffer_for(self, dst: Any) -> Any:
         import moderngl
 
@@ -548,10 +558,3 @@ class ColorCorrectionPass:
         if self._fbo_cache is not None:
             self._fbo_cache[1].release()
             self._fbo_cache = None
-
-
-def release_programs(ctx: moderngl.Context) -> None:
-    """Release every cached colour-correction program of ``ctx``."""
-    for program in getattr(ctx, _CACHE_ATTR, {}).values():
-        program.release()
-    setattr(ctx, _CACHE_ATTR, {})

@@ -74,10 +74,6 @@ class SceneIndex:
         if observer not in self._observers:
             self._observers.append(observer)
 
-    def remove_observer(self, observer: SceneIndexObserver) -> None:
-        if observer in self._observers:
-            self._observers.remove(observer)
-
     def _send_added(self, entries: list[AddedPrimEntry]) -> None:
         if not entries:
             return

@@ -144,11 +144,6 @@ RUNNER_RULES: dict[str, Rule] = {
     )
 }
 
-#: Short validator names, in run order.
-VALIDATORS = ("LightValues", "IesProfile", "Photometry", "ShadowBudget", "StbNoiseRisk",
-              "StageUnits", "AssetPaths")
-
-
 @dataclass
 class Finding:
     """One problem; JSON-ready with :meth:`to_dict`."""

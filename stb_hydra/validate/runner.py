@@ -20,7 +20,6 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from pxr import Tf, Usd, UsdValidation
 
@@ -247,7 +246,3 @@ def validate_in_process(path: str, root: str, sel: Selection, thumbnails: bool) 
         analysis.clear_cache()
         msg = " ".join(f"{type(exc).__name__}: {exc}".split())
         return crash_report(path, root, msg[:2000], time.perf_counter() - t0)
-
-
-def is_layer_file(p: Path) -> bool:
-    return p.suffix.lower() in (".usd", ".usda", ".usdc", ".usdz")

@@ -20,11 +20,13 @@ import tempfile
 
 import numpy as np
 
+from ..color import LUMINANCE_REC709
+
 #: Thumbnail size (px).
 WIDTH, HEIGHT = 192, 108
 #: Uniform ambient radiance (nits) under the asset's own lights.
 AMBIENT_NITS = 0.05
-_LUMA = np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+_LUMA = np.array(LUMINANCE_REC709, dtype=np.float32)
 
 
 def render_api():
