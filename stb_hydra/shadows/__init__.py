@@ -1,8 +1,9 @@
 """Shadow atlas: allocator, resolution policy and update scheduler (GL-free).
 
-The GL capture / sampling code (``shadows/capture.py``, render task ``shadow.py``)
-works against this API; see ``atlas`` for the rect conventions (texel offsets from the
-texture origin, border included in the rect).
+Capture parameters and the map record layout are here too (``capture``); the GL
+capture / sampling code (``renderer/shadow_capture.py``, render task
+``renderer/tasks/shadow_atlas.py``) works against this API; see ``atlas`` for the
+rect conventions (texel offsets from the texture origin, border included in the rect).
 """
 
 from stb_hydra.shadows.atlas import AllocResult, AtlasRect, AtlasStats, ShadowAtlas

@@ -1,4 +1,5 @@
-"""Shadow-map capture into the 16-bit atlas (GL).
+"""Shadow-map capture parameters and records (GL-free; the GL capture itself is
+:mod:`stb_hydra.renderer.shadow_capture`).
 
 * Spot lights (cone <= ``SPOT_MAX_HALF_ANGLE_DEG``): a perspective depth map
   rendered from the light into a temporary depth target of the map's interior size.
@@ -9,7 +10,8 @@
   octahedral mirroring for omni).
 
 Every capture records a :class:`Capture` (the light transform it used); lookups
-use that, not the light's current transform.
+use that, not the light's current transform. :func:`map_record` is the std430
+``ShadowMap`` record (``common/shadow.glsl``) the lighting shaders read.
 """
 
 from __future__ import annotations
@@ -17,12 +19,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import moderngl
 import numpy as np
 
 from .. import limits
-from ..renderer.camera import look_at, perspective
-from ..renderer.gl import set_uniform, shader_library
 from .atlas import AtlasRect
 
 #: Widest cone captured with one perspective map; wider cones use an octahedral map.
@@ -77,9 +76,9 @@ def capture_for(position, direction, range_m, radius, cone_cutoff_rad, emission)
 def spot_view_proj(c: Capture) -> np.ndarray:
     pos = np.array(c.position)
     d = np.array(c.direction)
-    to_world = look_at(pos, pos + d, up=_up_for(d))
+    to_world = _look_at(pos, pos + d, up=_up_for(d))
     t = math.tan(c.spot_half_angle)
-    return np.linalg.inv(to_world) @ perspective(t, t, 0.0, 0.0, c.near, c.range)
+    return np.linalg.inv(to_world) @ _perspective(t, t, 0.0, 0.0, c.near, c.range)
 
 
 def _up_for(d: np.ndarray):
@@ -90,7 +89,7 @@ def face_rotations() -> np.ndarray:
     """(6, 3, 3) world -> face-view rotations (row-vector), face order +X -X +Y -Y +Z -Z."""
     out = np.zeros((6, 3, 3))
     for i, (f, up) in enumerate(_FACES):
-        m = look_at(np.zeros(3), np.array(f), up=up)
+        m = _look_at(np.zeros(3), np.array(f), up=up)
         out[i] = np.linalg.inv(m)[:3, :3]
     return out
 
@@ -102,138 +101,55 @@ def texel_angle(c: Capture, interior: int) -> float:
     return 2.0 * math.tan(c.spot_half_angle) / max(interior, 1)
 
 
-class ShadowCapturer:
-    """Owns the atlas texture and the temporary depth targets."""
-
-    def __init__(self, ctx: moderngl.Context, size: int) -> None:
-        self.ctx = ctx
-        self.size = size
-        self.atlas = ctx.texture((size, size), 1, dtype="nu2")
-        self.atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.atlas.repeat_x = self.atlas.repeat_y = False
-        self.atlas_fbo = ctx.framebuffer(color_attachments=[self.atlas])
-        self.atlas_fbo.clear(1.0, 1.0, 1.0, 1.0)
-        self._temps: dict[tuple[int, int], tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
-        self._faces = face_rotations().astype(np.float32)
-        self.captures = 0
-        self.texels = 0
-
-    def _temp(self, w: int, h: int):
-        t = self._temps.get((w, h))
-        if t is None:
-            tex = self.ctx.depth_texture((w, h))
-            tex.compare_func = ""  # read raw depth (moderngl enables comparison by default)
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            tex.repeat_x = tex.repeat_y = False
-            t = (tex, self.ctx.framebuffer(depth_attachment=tex))
-            self._temps[(w, h)] = t
-        return t
-
-    def capture(self, delegate, key: str, c: Capture, rect: AtlasRect, dynamic: bool) -> None:
-        """Render the light's depth and copy it into ``rect`` of the atlas."""
-        ctx = self.ctx
-        border = limits.SHADOW_MAP_BORDER_PX
-        interior = rect.size - 2 * border
-        if interior < 4:
-            return
-        prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
-        batches = _batches_in_range(delegate, c, dynamic)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        if c.omni:
-            f = max(interior // 2, 4)
-            tex, fbo = self._temp(3 * f, 2 * f)
-            fbo.use()
-            fbo.clear(depth=1.0)
-            proj = perspective(1.0, 1.0, 0.0, 0.0, c.near, c.range)
-            pos = np.array(c.position)
-            for i in range(6):
-                rot = np.eye(4)
-                rot[:3, :3] = self._faces[i]
-                trans = np.eye(4)
-                trans[3, :3] = -pos
-                vp = trans @ rot @ proj
-                ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
-                set_uniform(prog, "u_light_view_proj", vp.astype(np.float32))
-                for b in batches:
-                    delegate.vertex_array(b, prog, depth_only=True).render(
-                        moderngl.TRIANGLES, instances=b.count
-                    )
-            self.texels += 6 * f * f
-        else:
-            tex, fbo = self._temp(interior, interior)
-            fbo.use()
-            fbo.clear(depth=1.0)
-            ctx.viewport = (0, 0, interior, interior)
-            set_uniform(prog, "u_light_view_proj", spot_view_proj(c).astype(np.float32))
-            for b in batches:
-                delegate.vertex_array(b, prog, depth_only=True).render(
-                    moderngl.TRIANGLES, instances=b.count
-                )
-            self.texels += interior * interior
-        ctx.disable(moderngl.DEPTH_TEST)
-        # copy into the atlas
-        cp = shader_library(ctx).program("fullscreen.vert", "shadow_copy.frag")
-        self.atlas_fbo.use()
-        ctx.viewport = (rect.x, rect.y, rect.size, rect.size)
-        tex.use(0)
-        cp["u_depth"].value = 0
-        set_uniform(cp, "u_rect", (rect.x, rect.y, rect.size, border))
-        set_uniform(cp, "u_omni", 1 if c.omni else 0)
-        set_uniform(cp, "u_near", float(c.near))
-        set_uniform(cp, "u_far", float(c.range))
-        set_uniform(cp, "u_range", float(c.range))
-        set_uniform(cp, "u_tan_half", math.tan(c.spot_half_angle) if not c.omni else 1.0)
-        set_uniform(cp, "u_bias_angle", BIAS_TEXELS * texel_angle(c, interior))
-        if "u_face_rot" in cp:
-            cp["u_face_rot"].write(self._faces.tobytes())
-        vao = delegate_fullscreen(ctx, cp)
-        vao.render(moderngl.TRIANGLES, vertices=3)
-        self.captures += 1
-
-    def record(self, c: Capture, rect: AtlasRect) -> np.ndarray:
-        """The std430 ``ShadowMap`` record (28 floats) of a captured map."""
-        border = limits.SHADOW_MAP_BORDER_PX
-        interior = rect.size - 2 * border
-        rec = np.zeros(RECORD_FLOATS, dtype=np.float32)
-        if not c.omni:
-            rec[0:16] = spot_view_proj(c).astype(np.float32).reshape(16)
-        rec[16:19] = c.position
-        rec[19] = c.range
-        rec[20:24] = (rect.x + border, rect.y + border, interior, 1.0 if c.omni else 0.0)
-        rec[24:28] = (c.near, texel_angle(c, interior), 1.0 / self.size, NORMAL_BIAS_TEXELS)
-        return rec
-
-    def release(self) -> None:
-        for tex, fbo in self._temps.values():
-            fbo.release()
-            tex.release()
-        self._temps.clear()
-        self.atlas_fbo.release()
-        self.atlas.release()
+def map_record(c: Capture, rect: AtlasRect, atlas_size: int) -> np.ndarray:
+    """The std430 ``ShadowMap`` record (``RECORD_FLOATS`` floats) of a map captured
+    with ``c`` into ``rect`` of an ``atlas_size`` atlas: view-projection (spot), position
+    and range, interior rect and omni flag, near / texel angle / 1 / atlas size /
+    normal bias."""
+    border = limits.SHADOW_MAP_BORDER_PX
+    interior = rect.size - 2 * border
+    rec = np.zeros(RECORD_FLOATS, dtype=np.float32)
+    if not c.omni:
+        rec[0:16] = spot_view_proj(c).astype(np.float32).reshape(16)
+    rec[16:19] = c.position
+    rec[19] = c.range
+    rec[20:24] = (rect.x + border, rect.y + border, interior, 1.0 if c.omni else 0.0)
+    rec[24:28] = (c.near, texel_angle(c, interior), 1.0 / atlas_size, NORMAL_BIAS_TEXELS)
+    return rec
 
 
-_fs_vaos: dict[int, moderngl.VertexArray] = {}
+# Row-vector camera matrices, as ``stb_hydra.renderer.camera.look_at`` / ``perspective``
+# (this package may not import the renderer; tests/test_layering.py checks that
+# the two stay equal).
 
 
-def delegate_fullscreen(ctx: moderngl.Context, prog: moderngl.Program) -> moderngl.VertexArray:
-    vao = _fs_vaos.get(prog.glo)
-    if vao is None:
-        vao = ctx.vertex_array(prog, [])
-        _fs_vaos[prog.glo] = vao
-    return vao
+def _look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+    """Camera-to-world (row-vector) looking from ``eye`` at ``target``."""
+    eye = np.asarray(eye, dtype=np.float64)
+    f = np.asarray(target, dtype=np.float64) - eye
+    f /= max(np.linalg.norm(f), 1e-30)
+    up = np.asarray(up, dtype=np.float64)
+    if abs(float(f @ up)) > 0.999:
+        up = np.array([0.0, 0.0, 1.0])
+    x = np.cross(f, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(x, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3], m[3, :3] = x, y, -f, eye
+    return m
 
 
-def _batches_in_range(delegate, c: Capture, dynamic: bool):
-    """Draw batches whose world bounds touch the light's range sphere; static maps
-    skip dynamic geometry."""
-    out = []
-    p = np.array(c.position)
-    for b in delegate.batches:
-        if b.dynamic and not dynamic:
-            continue
-        lo, hi = b.bounds
-        d = p - np.clip(p, lo, hi)
-        if float(d @ d) <= c.range * c.range:
-            out.append(b)
-    return out
+def _perspective(tan_x: float, tan_y: float, off_x: float, off_y: float, near: float,
+                 far: float) -> np.ndarray:
+    """Row-vector projection for an off-axis frustum (view looks down -Z)."""
+    l, r = (off_x - tan_x), (off_x + tan_x)
+    b, t = (off_y - tan_y), (off_y + tan_y)
+    m = np.zeros((4, 4))
+    m[0, 0] = 2.0 / (r - l)
+    m[1, 1] = 2.0 / (t - b)
+    m[2, 0] = (r + l) / (r - l)
+    m[2, 1] = (t + b) / (t - b)
+    m[2, 2] = -(far + near) / (far - near)
+    m[2, 3] = -1.0
+    m[3, 2] = -2.0 * far * near / (far - near)
+    return m

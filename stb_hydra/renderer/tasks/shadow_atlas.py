@@ -17,8 +17,9 @@ import numpy as np
 
 from ... import limits
 from ...shadows.atlas import ShadowAtlas
-from ...shadows.capture import RECORD_FLOATS, Capture, ShadowCapturer, capture_for
+from ...shadows.capture import RECORD_FLOATS, Capture, capture_for
 from ...shadows.scheduler import ShadowScheduler
+from ..shadow_capture import ShadowCapturer
 from .base import Task
 
 #: Frames a shadowed light may stay out of the FoV before its map is freed.
