@@ -263,6 +263,11 @@ def test_check_output_path(tmp_path: Path):
         write_image(tmp_path / "img.bmp", np.zeros((4, 4, 3)))
 
 
+# Failure injection goes through OIIO's own API: ``ImageOutput.write_image`` is the one
+# pixel write of ``write_image``; tests replace it and call the real one through this.
+_REAL_WRITE_IMAGE = oiio.ImageOutput.write_image
+
+
 def fail_midway(out: oiio.ImageOutput, pixels: np.ndarray) -> bool:
     """Write half the scanlines for real, then fail like a full disk would."""
     half = pixels.shape[0] // 2
@@ -272,7 +277,7 @@ def fail_midway(out: oiio.ImageOutput, pixels: np.ndarray) -> bool:
 
 @pytest.mark.parametrize("name", ["img.exr", "img.png", "img.tif"])
 def test_failure_mid_write_leaves_nothing(tmp_path: Path, monkeypatch, name):
-    monkeypatch.setattr(images, "_write_pixels", fail_midway)
+    monkeypatch.setattr(oiio.ImageOutput, "write_image", fail_midway)
     target = tmp_path / name
     with pytest.raises(ImageWriteError, match="simulated") as err:
         write_image(target, np.ones((H, W, 3), np.float32))
@@ -284,12 +289,12 @@ def test_failure_keeps_existing_target(tmp_path: Path, monkeypatch):
     target = tmp_path / "img.exr"
     write_image(target, np.full((4, 4, 3), 0.5, np.float32))
     original = target.read_bytes()
-    monkeypatch.setattr(images, "_write_pixels", fail_midway)
+    monkeypatch.setattr(oiio.ImageOutput, "write_image", fail_midway)
     with pytest.raises(ImageWriteError):
         write_image(target, np.full((H, W, 3), 2.0, np.float32))
     assert target.read_bytes() == original and listing(tmp_path) == ["img.exr"]
 
-    monkeypatch.setattr(images, "_write_pixels", lambda out, px: False)  # OIIO says no
+    monkeypatch.setattr(oiio.ImageOutput, "write_image", lambda out, px: False)  # OIIO says no
     with pytest.raises(ImageWriteError, match="cannot write"):
         write_image(target, np.full((4, 4, 3), 2.0, np.float32))
     assert target.read_bytes() == original and listing(tmp_path) == ["img.exr"]
@@ -309,7 +314,7 @@ def test_interrupt_cleans_up_and_propagates(tmp_path: Path, monkeypatch):
     def interrupted(out, pixels):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(images, "_write_pixels", interrupted)
+    monkeypatch.setattr(oiio.ImageOutput, "write_image", interrupted)
     with pytest.raises(KeyboardInterrupt):
         write_image(tmp_path / "img.png", np.zeros((4, 4, 3), np.float32))
     assert listing(tmp_path) == []
@@ -320,9 +325,9 @@ def test_temp_file_is_a_hidden_sibling_with_the_real_extension(tmp_path: Path, m
 
     def spy(out, pixels):
         seen.extend(listing(tmp_path))
-        return out.write_image(pixels)
+        return _REAL_WRITE_IMAGE(out, pixels)
 
-    monkeypatch.setattr(images, "_write_pixels", spy)
+    monkeypatch.setattr(oiio.ImageOutput, "write_image", spy)
     write_image(tmp_path / "shot.exr", np.zeros((4, 4, 3), np.float32))
     assert len(seen) == 1 and seen[0].startswith(".shot.tmp-") and seen[0].endswith(".exr")
     assert listing(tmp_path) == ["shot.exr"]

@@ -299,11 +299,6 @@ def _current_umask() -> int:
     return mask
 
 
-def _write_pixels(out: oiio.ImageOutput, pixels: np.ndarray) -> bool:
-    """The single OIIO pixel write (a seam for failure-injection tests)."""
-    return out.write_image(pixels)
-
-
 def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
     directory = path.parent
     try:
@@ -321,7 +316,7 @@ def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
         if not out.open(str(tmp), spec):
             raise ImageWriteError(path, out.geterror() or "OIIO open failed")
         try:
-            if not _write_pixels(out, pixels):
+            if not out.write_image(pixels):  # the one pixel write (tests inject failures)
                 raise ImageWriteError(path, out.geterror() or "OIIO write failed")
         finally:
             closed = out.close()
@@ -373,62 +368,81 @@ def write_image(
     check_output_path(p)
     ext = p.suffix.lower()
     a = _as_hwc(pixels)
-    attrs: dict[str, Any] = {}
-    auto_space: str | None
     if ext in SCENE_LINEAR_FORMATS:
         if display_referred:
             raise ValueError(f"'{p}': EXR holds scene-linear data, not display-referred")
-        if pixel_type not in ("half", "float"):
-            raise ValueError(f"EXR pixel_type must be 'half' or 'float' (got '{pixel_type}')")
-        data = np.ascontiguousarray(a, dtype=np.float32)
-        if pixel_type == "half":
-            data = np.clip(data, -HALF_MAX, HALF_MAX)  # NaN stays NaN
-        fmt = pixel_type
-        auto_space = color_pipeline.input_space if color_pipeline else DEFAULT_SCENE_LINEAR_SPACE
-        if color_pipeline is not None:
-            attrs.update(color_pipeline.metadata())
+        data, fmt, pipeline = _scene_linear_pixels(a, pixel_type), pixel_type, color_pipeline
+        auto_space = pipeline.input_space if pipeline else DEFAULT_SCENE_LINEAR_SPACE
     else:
-        bits = DISPLAY_FORMATS[ext] if bits is None else bits
-        if bits not in (8, 16) or (bits == 16 and ext in (".jpg", ".jpeg")):
-            raise ValueError(f"'{p}': {bits}-bit output is not supported for {ext}")
-        if display_referred:
-            display = np.clip(np.nan_to_num(_to_unit_float(a), nan=0.0), 0.0, 1.0)
-            pipeline = color_pipeline
-        else:
-            if a.shape[2] not in (3, 4):
-                raise ValueError(f"scene-linear pixels must be RGB or RGBA, got {a.shape}")
-            pipeline = color_pipeline or _default_pipeline(os.environ.get("OCIO", ""))
-            display = pipeline.apply_cpu(a)
-        if ext in (".jpg", ".jpeg") and display.shape[2] in (2, 4):
-            display = display[:, :, :-1]  # JPEG has no alpha
-        from stb_hydra.color.ocio import quantize
-
-        data = np.ascontiguousarray(quantize(display, bits))
-        fmt = "uint8" if bits == 8 else "uint16"
+        data, fmt, pipeline = _display_pixels(p, a, color_pipeline, display_referred, bits)
         auto_space = pipeline.display_space if pipeline is not None else None
-        if pipeline is not None:
-            attrs.update(pipeline.metadata())
     h, w, c = data.shape
     names = channel_names or _default_channel_names(c)
     if len(names) != c:
         raise ValueError(f"{len(names)} channel names for {c} channels")
+    attrs: dict[str, Any] = pipeline.metadata() if pipeline is not None else {}
+    from stb_hydra import __version__
 
-    spec = oiio.ImageSpec(w, h, c, fmt)
+    attrs.setdefault("Software", f"stb_hydra {__version__}")
+    attrs.update(metadata or {})
+    spec = _image_spec(w, h, fmt, names, ext)
+    space = auto_space if colorspace == "auto" else colorspace
+    if space:
+        spec.attribute("oiio:ColorSpace", space)
+    _apply_metadata(spec, attrs, exr=ext in SCENE_LINEAR_FORMATS)
+    _atomic_write(p, spec, data)
+    return p
+
+
+def _scene_linear_pixels(a: np.ndarray, pixel_type: str) -> np.ndarray:
+    """float32 EXR pixels; ``'half'`` clamps to +-HALF_MAX (NaN stays NaN)."""
+    if pixel_type not in ("half", "float"):
+        raise ValueError(f"EXR pixel_type must be 'half' or 'float' (got '{pixel_type}')")
+    data = np.ascontiguousarray(a, dtype=np.float32)
+    if pixel_type == "half":
+        data = np.clip(data, -HALF_MAX, HALF_MAX)  # NaN stays NaN
+    return data
+
+
+def _display_pixels(
+    p: Path,
+    a: np.ndarray,
+    color_pipeline: ColorPipeline | None,
+    display_referred: bool,
+    bits: int | None,
+) -> tuple[np.ndarray, str, ColorPipeline | None]:
+    """(quantised display-referred pixels, OIIO format, pipeline naming the colour space)
+    for png/jpg/tif: through ``color_pipeline`` (default: $OCIO or the built-in config)
+    unless already ``display_referred``; JPEG drops alpha."""
+    ext = p.suffix.lower()
+    bits = DISPLAY_FORMATS[ext] if bits is None else bits
+    if bits not in (8, 16) or (bits == 16 and ext in (".jpg", ".jpeg")):
+        raise ValueError(f"'{p}': {bits}-bit output is not supported for {ext}")
+    if display_referred:
+        display = np.clip(np.nan_to_num(_to_unit_float(a), nan=0.0), 0.0, 1.0)
+        pipeline = color_pipeline
+    else:
+        if a.shape[2] not in (3, 4):
+            raise ValueError(f"scene-linear pixels must be RGB or RGBA, got {a.shape}")
+        pipeline = color_pipeline or _default_pipeline(os.environ.get("OCIO", ""))
+        display = pipeline.apply_cpu(a)
+    if ext in (".jpg", ".jpeg") and display.shape[2] in (2, 4):
+        display = display[:, :, :-1]  # JPEG has no alpha
+    from stb_hydra.color.ocio import quantize
+
+    data = np.ascontiguousarray(quantize(display, bits))
+    return data, "uint8" if bits == 8 else "uint16", pipeline
+
+
+def _image_spec(w: int, h: int, fmt: str, names: tuple[str, ...], ext: str) -> oiio.ImageSpec:
+    """ImageSpec with channel names and the alpha channel (unassociated outside EXR)."""
+    spec = oiio.ImageSpec(w, h, len(names), fmt)
     spec.channelnames = tuple(names)
     if "A" in names:
         spec.alpha_channel = names.index("A")
         if ext not in SCENE_LINEAR_FORMATS:  # EXR alpha is associated by definition
             spec.attribute("oiio:UnassociatedAlpha", 1)
-    from stb_hydra import __version__
-
-    attrs.setdefault("Software", f"stb_hydra {__version__}")
-    space = auto_space if colorspace == "auto" else colorspace
-    if space:
-        spec.attribute("oiio:ColorSpace", space)
-    attrs.update(metadata or {})
-    _apply_metadata(spec, attrs, exr=ext in SCENE_LINEAR_FORMATS)
-    _atomic_write(p, spec, data)
-    return p
+    return spec
 
 
 def write_aov(
