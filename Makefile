@@ -28,6 +28,7 @@ demo: sysdeps $(STAMP)
 
 test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools
+	$(VENV)/bin/lint-imports
 	$(PY) -m pytest -q -p no:cacheprovider
 
 lint: $(STAMP)
