@@ -85,7 +85,14 @@ def _primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode):
     return np.asarray(val), pv.GetInterpolation()
 
 
-def _expand(values: np.ndarray, interp: str, n_points: int, n_faces: int, fv_index, face_of_corner):
+def _expand(
+    values: np.ndarray,
+    interp: str,
+    n_points: int,
+    n_faces: int,
+    fv_index: np.ndarray,
+    face_of_corner: np.ndarray,
+) -> np.ndarray | None:
     """Per-face-vertex array for a primvar of any interpolation (None when sizes mismatch)."""
     v = np.asarray(values)
     if interp == UsdGeom.Tokens.constant:
@@ -108,12 +115,60 @@ def _expand(values: np.ndarray, interp: str, n_points: int, n_faces: int, fv_ind
     return None
 
 
+@dataclass
+class _Topology:
+    """A Mesh's checked points and face-vertex topology, fan-triangulated."""
+
+    prim_path: str
+    points: np.ndarray  # (n, 3) float32, finite
+    counts: np.ndarray  # (faces,) int64
+    fvi: np.ndarray  # (face-vertices,) int64 indices into points
+    corners: np.ndarray  # (m, 3) triangle corners: indices into fvi, right-handed
+    tri_face: np.ndarray  # (m,) source face of each triangle
+    face_of_corner: np.ndarray  # (face-vertices,) face of each face-vertex
+    warnings: list[str]
+
+    def expand(self, values: np.ndarray, interp: str) -> np.ndarray | None:
+        """A primvar per face-vertex (None when its size does not match)."""
+        return _expand(
+            values, interp, len(self.points), len(self.counts), self.fvi, self.face_of_corner
+        )
+
+
 def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | None:
     """Triangulated geometry of a Mesh or implicit gprim; None when empty/invalid."""
     tname = prim.GetTypeName()
     if tname in IMPLICIT_TYPES:
         return tessellate_implicit(prim, time)
     mesh = UsdGeom.Mesh(prim)
+    topo = _read_topology(prim, mesh, time)
+    if not isinstance(topo, _Topology):
+        return topo  # None (nothing authored) or an empty mesh with a warning
+    nvals, ninterp = _authored_normals(prim, mesh, time)
+    cvals, cinterp = _primvar(prim, "displayColor", time)
+    display = None
+    if cvals is not None and cinterp == UsdGeom.Tokens.constant and len(cvals):
+        display = np.asarray(cvals[0], dtype=np.float32)
+        cvals = None
+    normals_fv, need_fv = _corner_normals(topo, nvals, ninterp, cvals, cinterp)
+    colors_fv = None
+    if cvals is not None:
+        colors_fv = topo.expand(cvals, cinterp)
+    if (
+        not need_fv
+        and ninterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
+        and nvals is not None
+    ):
+        return _shared_vertex_mesh(prim, topo, nvals, cvals, cinterp, display)
+    return _face_varying_mesh(prim, topo, normals_fv, colors_fv, display)
+
+
+def _read_topology(
+    prim: Usd.Prim, mesh: UsdGeom.Mesh, time: Usd.TimeCode
+) -> _Topology | MeshGeometry | None:
+    """Points, counts and indices, checked and triangulated (left-handed winding
+    flipped). None when nothing is authored; an empty MeshGeometry with a warning when
+    the topology is inconsistent. Non-finite points become 0 (with a warning)."""
     pts = mesh.GetPointsAttr().Get(time)
     counts = mesh.GetFaceVertexCountsAttr().Get(time)
     fvi = mesh.GetFaceVertexIndicesAttr().Get(time)
@@ -135,71 +190,90 @@ def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | Non
         points = np.where(np.isfinite(points), points, 0.0).astype(np.float32)
     holes = mesh.GetHoleIndicesAttr().Get(time)
     corners, tri_face = triangulate(counts, fvi, np.asarray(holes) if holes else None)
-    left = mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded
-    if left:
+    if mesh.GetOrientationAttr().Get(time) == UsdGeom.Tokens.leftHanded:
         corners = corners[:, [0, 2, 1]]
-    nface = len(counts)
-    face_of_corner = np.repeat(np.arange(nface), counts)
+    face_of_corner = np.repeat(np.arange(len(counts)), counts)
+    return _Topology(
+        str(prim.GetPath()), points, counts, fvi, corners, tri_face, face_of_corner, warnings
+    )
 
-    # Authored normals (primvars:normals wins over normals, as in UsdGeom).
+
+def _authored_normals(
+    prim: Usd.Prim, mesh: UsdGeom.Mesh, time: Usd.TimeCode
+) -> tuple[np.ndarray | None, str | None]:
+    """(values, interpolation) of authored normals: ``primvars:normals`` wins over
+    ``normals``, as in UsdGeom; (None, None) without either."""
     nvals, ninterp = _primvar(prim, "normals", time)
     if nvals is None:
         a = mesh.GetNormalsAttr()
         v = a.Get(time) if a.HasAuthoredValue() else None
         if v is not None and len(v):
             nvals, ninterp = np.asarray(v), mesh.GetNormalsInterpolation()
-    cvals, cinterp = _primvar(prim, "displayColor", time)
-    display = None
-    if cvals is not None and cinterp == UsdGeom.Tokens.constant and len(cvals):
-        display = np.asarray(cvals[0], dtype=np.float32)
-        cvals = None
+    return nvals, ninterp
 
-    need_fv = (
-        nvals is not None and ninterp in (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform)
-    ) or (cvals is not None and cinterp in (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform))
-    if nvals is None:
-        normals_fv = _auto_normals(points, fvi, corners, tri_face, nface, face_of_corner, counts)
-        need_fv = True
-    else:
-        normals_fv = _expand(nvals, ninterp, len(points), nface, fvi, face_of_corner)
-        if normals_fv is None:
-            warnings.append(f"mesh <{prim.GetPath()}>: normals have the wrong size; recomputed")
-            normals_fv = _auto_normals(
-                points, fvi, corners, tri_face, nface, face_of_corner, counts
-            )
-            need_fv = True
-        elif left:
-            normals_fv = normals_fv  # normals are authored for the stated orientation
-    colors_fv = None
-    if cvals is not None:
-        colors_fv = _expand(cvals, cinterp, len(points), nface, fvi, face_of_corner)
 
-    if (
-        not need_fv
-        and ninterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
-        and nvals is not None
-    ):
-        # Shared vertices: keep the point indexing.
-        normals = _unit(np.asarray(nvals, dtype=np.float32)[: len(points)]).astype(np.float32)
-        vcols = None
-        if cvals is not None and cinterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
-            vcols = np.asarray(cvals, dtype=np.float32)[: len(points)]
-        tri = fvi[corners].astype(np.uint32)
-        return MeshGeometry(
-            points, normals, tri, vcols, display, _double_sided(prim), tuple(warnings)
-        )
+def _corner_normals(
+    topo: _Topology,
+    nvals: np.ndarray | None,
+    ninterp: str | None,
+    cvals: np.ndarray | None,
+    cinterp: str | None,
+) -> tuple[np.ndarray, bool]:
+    """(normals per face-vertex, whether the face-varying layout is needed): authored
+    normals as authored (for the stated orientation), else computed ones (which, like a
+    face-varying or uniform primvar, need the face-varying layout)."""
+    per_corner = (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform)
+    need_fv = (nvals is not None and ninterp in per_corner) or (
+        cvals is not None and cinterp in per_corner
+    )
+    if nvals is not None:
+        normals_fv = topo.expand(nvals, ninterp)
+        if normals_fv is not None:
+            return normals_fv, need_fv
+        topo.warnings.append(f"mesh <{topo.prim_path}>: normals have the wrong size; recomputed")
+    return _auto_normals(topo), True
 
-    # Face-varying layout: one vertex per corner that is used by a triangle.
-    used = np.unique(corners)
-    remap = np.full(len(fvi), -1, dtype=np.int64)
+
+def _shared_vertex_mesh(
+    prim: Usd.Prim,
+    topo: _Topology,
+    nvals: np.ndarray,
+    cvals: np.ndarray | None,
+    cinterp: str | None,
+    display: np.ndarray | None,
+) -> MeshGeometry:
+    """Per-vertex normals (and colours): triangles index the authored points."""
+    points = topo.points
+    normals = _unit(np.asarray(nvals, dtype=np.float32)[: len(points)]).astype(np.float32)
+    vcols = None
+    if cvals is not None and cinterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying):
+        vcols = np.asarray(cvals, dtype=np.float32)[: len(points)]
+    tri = topo.fvi[topo.corners].astype(np.uint32)
+    return MeshGeometry(
+        points, normals, tri, vcols, display, _double_sided(prim), tuple(topo.warnings)
+    )
+
+
+def _face_varying_mesh(
+    prim: Usd.Prim,
+    topo: _Topology,
+    normals_fv: np.ndarray,
+    colors_fv: np.ndarray | None,
+    display: np.ndarray | None,
+) -> MeshGeometry:
+    """One vertex per face-vertex that a triangle uses."""
+    used = np.unique(topo.corners)
+    remap = np.full(len(topo.fvi), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
-    out_pts = points[fvi[used]]
+    out_pts = topo.points[topo.fvi[used]]
     out_n = _unit(np.asarray(normals_fv, dtype=np.float32)[used]).astype(np.float32)
     out_c = None
     if colors_fv is not None:
         out_c = np.asarray(colors_fv, dtype=np.float32)[used]
-    tri = remap[corners].astype(np.uint32)
-    return MeshGeometry(out_pts, out_n, tri, out_c, display, _double_sided(prim), tuple(warnings))
+    tri = remap[topo.corners].astype(np.uint32)
+    return MeshGeometry(
+        out_pts, out_n, tri, out_c, display, _double_sided(prim), tuple(topo.warnings)
+    )
 
 
 def _double_sided(prim: Usd.Prim) -> bool:
@@ -207,14 +281,15 @@ def _double_sided(prim: Usd.Prim) -> bool:
     return bool(a.Get()) if a and a.HasAuthoredValue() else False
 
 
-def _auto_normals(points, fvi, corners, tri_face, nface, face_of_corner, counts) -> np.ndarray:
+def _auto_normals(topo: _Topology) -> np.ndarray:
     """Per face-vertex normals: smooth, but faceted where the smooth normal
     deviates from the face normal by more than ``CREASE_ANGLE_DEG``."""
+    points, fvi, face_of_corner = topo.points, topo.fvi, topo.face_of_corner
     p = points.astype(np.float64)
-    tri_pts = p[fvi[corners]]
+    tri_pts = p[fvi[topo.corners]]
     tn = np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0])  # area-weighted
-    face_n = np.zeros((nface, 3))
-    np.add.at(face_n, tri_face, tn)
+    face_n = np.zeros((len(topo.counts), 3))
+    np.add.at(face_n, topo.tri_face, tn)
     face_unit = _unit(face_n)
     vert_n = np.zeros((len(points), 3))
     np.add.at(vert_n, fvi, face_n[face_of_corner])
