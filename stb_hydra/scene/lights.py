@@ -99,13 +99,17 @@ def light_type_of(prim: Usd.Prim) -> str | None:
     return None
 
 
+#: Colour temperature (K) rendered as exactly white; also UsdLux's colorTemperature fallback.
+WHITE_TEMPERATURE_K = 6500.0
+
+
 @lru_cache(maxsize=512)
 def blackbody_rgb(kelvin: float) -> tuple[float, float, float]:
     """Linear Rec.709 RGB of a blackbody, normalised so 6500 K -> (1, 1, 1)."""
     lo, hi = limits.COLOR_TEMPERATURE_RANGE_K
     k = min(max(float(kelvin), lo), hi)
     c = UsdLux.BlackbodyTemperatureAsRgb(k)
-    w = UsdLux.BlackbodyTemperatureAsRgb(6500.0)
+    w = UsdLux.BlackbodyTemperatureAsRgb(WHITE_TEMPERATURE_K)
     return (c[0] / w[0], c[1] / w[1], c[2] / w[2])
 
 
@@ -511,7 +515,7 @@ def _light_rgb(
         _warn(lp, ctx, f"negative colour {tuple(rgb)} clamped to 0")
         rgb = np.maximum(rgb, 0.0)
     if a.get("inputs:enableColorTemperature", False):
-        t = a.get("inputs:colorTemperature", 6500.0)
+        t = a.get("inputs:colorTemperature", WHITE_TEMPERATURE_K)
         if _finite(t):
             rgb = rgb * np.array(blackbody_rgb(float(t)))
         else:

@@ -18,6 +18,7 @@ import numpy as np
 from pxr import Sdf, Usd
 
 from .. import limits
+from ..scene import prims
 from ..scene.ies import IesError, IesProfile
 from ..scene.lights import LEGACY_INPUTS, ies_theta, load_ies_cached
 from .common import all_finite, authored_values, components, finding, fmt_times, fmt_value
@@ -55,7 +56,7 @@ def _finite(what: str) -> _Check:
 
 def _cone(c: list[float]) -> str | None:
     a = c[0]
-    if not math.isfinite(a) or a <= 0.0 or a > 180.0:
+    if not math.isfinite(a) or a <= 0.0 or a > prims.NO_CONE_ANGLE_DEG:
         return "cone angle outside (0, 180] degrees"
     return None
 

@@ -29,6 +29,8 @@ from .common import finding
 from .findings import Finding
 
 _CHUNK = 512
+#: Axis cosine limit of a light without a cone: below any cosine, so every direction passes.
+_NO_CONE_COS = -2.0
 
 
 def sample_surface(ana: StageAnalysis, n: int, seed: int = 0):
@@ -86,8 +88,8 @@ def overlap_counts(points, normals, double_sided, lights: list[prims.LightPrim])
     axis = np.array([lp.direction for lp in lights], dtype=np.float64)
     rng2 = np.array([lp.range for lp in lights], dtype=np.float64) ** 2
     cone_cos = np.array(
-        [math.cos(math.radians(min(lp.cone_angle, 180.0))) if lp.has_cone else -2.0
-         for lp in lights]
+        [math.cos(math.radians(min(lp.cone_angle, prims.NO_CONE_ANGLE_DEG))) if lp.has_cone
+         else _NO_CONE_COS for lp in lights]
     )
     front = np.array([lp.emission == prims.EMIT_COSINE for lp in lights])
     out = np.zeros(len(points), dtype=np.int64)
