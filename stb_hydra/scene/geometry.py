@@ -49,7 +49,9 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return np.where(n > 1e-20, v / np.maximum(n, 1e-30), np.array([0.0, 1.0, 0.0]))
 
 
-def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None):
+def triangulate(
+    counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Fan-triangulate polygons. Returns (tri_corner_index (m,3) into the
     face-vertex array, tri_face (m,) the source face of each triangle)."""
     counts = np.asarray(counts, dtype=np.int64)
@@ -75,7 +77,10 @@ def triangulate(counts: np.ndarray, indices: np.ndarray, holes: np.ndarray | Non
     return corners, face
 
 
-def _primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode):
+def _primvar(
+    prim: Usd.Prim, name: str, time: Usd.TimeCode
+) -> tuple[np.ndarray | None, str | None]:
+    """(flattened values, interpolation) of an authored primvar, else (None, None)."""
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     if not pv or not pv.HasAuthoredValue():
         return None, None

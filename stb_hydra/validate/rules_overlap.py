@@ -82,7 +82,12 @@ def sample_surface(ana: StageAnalysis, n: int, seed: int = 0):
     return np.concatenate(P), np.concatenate(N), np.concatenate(D), np.concatenate(M)
 
 
-def overlap_counts(points, normals, double_sided, lights: list[prims.LightPrim]) -> np.ndarray:
+def overlap_counts(
+    points: np.ndarray,
+    normals: np.ndarray,
+    double_sided: np.ndarray,
+    lights: list[prims.LightPrim],
+) -> np.ndarray:
     """Number of lights reaching each point (see module docstring)."""
     pos = np.array([lp.position for lp in lights], dtype=np.float64)
     axis = np.array([lp.direction for lp in lights], dtype=np.float64)
