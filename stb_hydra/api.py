@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 from pxr import Usd
 
-from . import limits
 from .renderer.engine import Engine, RenderError
 from .renderer.frame import RenderSettings
 
@@ -46,8 +45,6 @@ def render(
     """
     fields = set(RenderSettings.__dataclass_fields__)
     extra = {k: v for k, v in options.items() if k in fields}
-    if extra.get("shadow_budget") is None:  # a still: every shadow map captured first
-        extra["shadow_budget"] = limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
     method_options = {k: v for k, v in options.items() if k not in fields}
     settings = RenderSettings(
         width=width,

@@ -11,6 +11,7 @@ from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.renderer.lighting import available
+from stb_hydra.renderer.records import InViewLights
 
 W, H = 192, 108
 TOL = 1e-4
@@ -62,7 +63,8 @@ def render(stage, method, **opts):
         frame = eng.render_frame()
         img = eng.aovs["color"][..., :3].copy()
         extra = eng.method.tile_totals() if method == "tiled" else None
-        return img, dict(frame.stats), extra, eng.delegate.light_table.range[eng.delegate.fov_rows]
+        rows = frame.get(InViewLights).rows
+        return img, dict(frame.stats), extra, eng.delegate.light_table.range[rows]
     finally:
         eng.release()
 

@@ -11,19 +11,18 @@ import numpy as np
 import pytest
 from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
-from stb_hydra.io.images import read_image
-from stb_hydra.renderer.engine import Engine
-from stb_hydra.renderer.frame import RenderSettings
-from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples
-from stb_hydra.renderer.tasks.aov_output import (
-    DEBUG_AOVS,
-    STB_DEBUG_AOVS,
-    check_debug_aovs,
+from stb_hydra.io.debug_views import (
     hash_colors,
     lightcount_heatmap,
     write_debug_aov,
     write_lightcount_legend,
 )
+from stb_hydra.io.images import read_image
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples
+from stb_hydra.renderer.records import InViewLights
+from stb_hydra.renderer.tasks.aov_output import DEBUG_AOVS, STB_DEBUG_AOVS, check_debug_aovs
 
 pytestmark = pytest.mark.gl
 
@@ -117,7 +116,7 @@ def test_every_debug_aov_has_the_image_size_and_is_finite(stb_run):
 def test_lightcount_matches_numpy_brute_force(stb_run):
     res, frame, eng, _tex = stb_run
     d = eng.delegate
-    rows = d.fov_rows
+    rows = frame.get(InViewLights).rows
     assert frame.light_count == len(rows) > 0
     pos = d.light_table.position[rows].astype(np.float64)
     rng = d.light_table.range[rows].astype(np.float64)

@@ -9,18 +9,19 @@ import pytest
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.renderer.light_buffer import LIGHT_STRIDE_FLOATS, pack_lights
+from stb_hydra.renderer.records import InViewLights, LightBuffer, ShadowSlots
 
 pytestmark = pytest.mark.gl
 
 
-def _gpu_records(d) -> np.ndarray:
-    n = len(d.fov_rows)
-    raw = d.light_ssbo.read(size=n * LIGHT_STRIDE_FLOATS * 4)
-    return np.frombuffer(raw, np.float32).reshape(n, LIGHT_STRIDE_FLOATS)
+def gpu_records(frame) -> np.ndarray:
+    lb = frame.get(LightBuffer)
+    raw = lb.ssbo.read(size=lb.count * LIGHT_STRIDE_FLOATS * 4)
+    return np.frombuffer(raw, np.float32).reshape(lb.count, LIGHT_STRIDE_FLOATS)
 
 
-def _expected(d) -> np.ndarray:
-    return pack_lights(d.light_table, d.fov_rows, d.fov_shadow_maps)
+def expected(d, frame) -> np.ndarray:
+    return pack_lights(d.light_table, frame.get(InViewLights).rows, frame.get(ShadowSlots).maps)
 
 
 def test_partial_uploads_keep_the_buffer_equal_to_a_full_pack(gl_ctx):
@@ -35,15 +36,16 @@ def test_partial_uploads_keep_the_buffer_equal_to_a_full_pack(gl_ctx):
         # First frames: shadow maps get slots a few at a time (budget), so the
         # slot column changes while the culled set stays the same.
         for _ in range(4):
-            eng.render_frame()
-            np.testing.assert_array_equal(_gpu_records(d), _expected(d))
+            f = eng.render_frame()
+            np.testing.assert_array_equal(gpu_records(f), expected(d, f))
         assert d.stats["light_partial_uploads"] >= 1
         # Each new slot rewrites one record; once every map has one, nothing is uploaded.
         assert d.last_upload_records == 1
         for _ in range(60):
-            if not eng.render_frame().stats["light_upload"]:
+            f = eng.render_frame()
+            if not f.stats["light_upload"]:
                 break
-            np.testing.assert_array_equal(_gpu_records(d), _expected(d))
+            np.testing.assert_array_equal(gpu_records(f), expected(d, f))
         assert not eng.render_frame().stats["light_upload"]
         # One light's intensity edit: exactly its record is rewritten.
         paths = [p for p in d.light_table.paths if p]
@@ -52,8 +54,8 @@ def test_partial_uploads_keep_the_buffer_equal_to_a_full_pack(gl_ctx):
         attr = prim.GetAttribute("inputs:intensity")
         before = d.stats["light_partial_uploads"]
         attr.Set(float(attr.Get() or 1.0) * 3.0)
-        eng.render_frame()
-        np.testing.assert_array_equal(_gpu_records(d), _expected(d))
+        f = eng.render_frame()
+        np.testing.assert_array_equal(gpu_records(f), expected(d, f))
         assert d.stats["light_partial_uploads"] == before + 1
         assert d.last_upload_records == 1
     finally:

@@ -405,10 +405,10 @@ def test_offline_render_captures_every_map_before_its_first_frame(gl_ctx):
         first = eng.aovs["color"][..., :3].copy()
         atlas = eng.task("shadow_atlas")
         for _ in range(200):
-            if all(atlas.scheduler.is_fresh(k) for k in atlas._row_of):
+            if all(atlas.scheduler.is_fresh(k) for k in atlas.registered_keys()):
                 break
             eng.render_frame()
-        assert all(atlas.scheduler.is_fresh(k) for k in atlas._row_of)
+        assert all(atlas.scheduler.is_fresh(k) for k in atlas.registered_keys())
         eng.render_frame()
         settled = eng.aovs["color"][..., :3].copy()
     finally:

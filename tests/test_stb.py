@@ -16,6 +16,7 @@ from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.renderer.gl import preprocess
 from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples, encode_samples
+from stb_hydra.renderer.records import InViewLights
 
 
 def lights_scene(n: int, seed: int = 1, cube: bool = True, cones: bool = False) -> str:
@@ -146,11 +147,11 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
     try:
         counts = np.zeros(n)
         for _ in range(frames):
-            eng.render_frame()
+            frame = eng.render_frame()
             big = read_u32(eng.buffers.textures["stb_bigtile"])[..., 0]
             idx, _w = decode_samples(big[:4, :4])
             counts[idx.ravel()] += 1
-        fov = eng.delegate.fov_rows
+        fov = frame.get(InViewLights).rows
         assert len(fov) == n
         # FoV index i <-> light table row fov[i]; the scene index order is the USD order.
         paths = [eng.delegate.light_table.paths[r] for r in fov]

@@ -32,11 +32,16 @@ METHOD = "stb"
 
 
 def _engine(stage, width, height):
+    from stb_hydra import limits
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
     eng = Engine(
-        stage, RenderSettings(width=width, height=height, lighting=METHOD, profile=True)
+        stage,
+        RenderSettings(
+            width=width, height=height, lighting=METHOD, profile=True,
+            shadow_budget=limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,  # real time
+        ),
     )
     eng.request_aovs(set())
     eng.aov_output.requested = set()

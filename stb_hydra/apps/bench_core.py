@@ -15,7 +15,7 @@ Per frame (all ms, wall clock):
   ``<task>.other`` (the remainder), so passes never count anything twice;
 * ``cpu``: ``frame`` minus the sum of the passes (sync + prepare + commit + Python);
 * ``timings``: the CPU phase keys as the engine reports them (``sync``,
-  ``commit``, ``prepare``, ``prepare.light_cull``, ``commit.lights``...).
+  ``commit``, ``prepare``, ``prepare.light_cull``, ``prepare.light_upload``...).
 
 Reported values are medians over the measured frames (after ``warmup`` frames).
 """
@@ -33,7 +33,7 @@ from typing import Any
 CPU_PREFIXES = ("sync", "commit", "prepare")
 #: Keys summed into the per-frame "cull + upload" overhead (the upload key exists
 #: once the light buffer upload moved to the commit phase).
-CULL_UPLOAD_KEYS = ("prepare.light_cull", "commit.lights")
+CULL_UPLOAD_KEYS = ("prepare.light_cull", "prepare.light_upload")
 
 
 @dataclass

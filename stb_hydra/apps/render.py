@@ -192,6 +192,10 @@ def _render_settings(args: argparse.Namespace):
         args.atlas_size < 256 or args.atlas_size & (args.atlas_size - 1)
     ):
         raise CliError(f"--atlas-size must be a power of two >= 256, got {args.atlas_size}")
+    if args.shadow_budget is not None and args.shadow_budget <= 0:
+        raise CliError(
+            f"--shadow-budget must be a positive number of texels, got {args.shadow_budget}"
+        )
     return RenderSettings(
         width=args.width,
         height=args.height or None,
@@ -202,13 +206,8 @@ def _render_settings(args: argparse.Namespace):
         ambient=args.ambient,
         profile=bool(args.stats),
         shadows=not args.no_shadows,
-        # Offline frames are complete: no light waits for its map unless a
-        # real-time budget is asked for.
-        shadow_budget=(
-            args.shadow_budget
-            if args.shadow_budget is not None
-            else limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
-        ),
+        # None = offline: every map captured before the frame (RenderSettings).
+        shadow_budget=args.shadow_budget,
         shadow_atlas_size=args.atlas_size,
         shadow_filter=args.shadow_filter,
         method_options=options,
@@ -314,8 +313,9 @@ def _finish(args: argparse.Namespace, stats: dict, written: int) -> int:
 
 
 def _write_outputs(eng, out, aovs, ext, pipeline, meta) -> None:
+    from ..io.debug_views import write_debug_aov
     from ..io.images import write_aov, write_image
-    from ..renderer.tasks.aov_output import DEBUG_AOVS, write_debug_aov
+    from ..renderer.tasks.aov_output import DEBUG_AOVS
 
     res = eng.aovs
     if ext == ".exr":

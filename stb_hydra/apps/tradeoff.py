@@ -165,20 +165,18 @@ class Run:
 def _settings(args, method: str, options: dict):
     from ..renderer.frame import RenderSettings
 
-    s = RenderSettings(
+    # shadow_budget None (offline): every shadow map captured before the first
+    # warm-up frame, so the measured frames are a steady state.
+    return RenderSettings(
         width=args.width, height=args.height, camera=args.camera, lighting=method,
         seed=args.seed, profile=True, method_options=dict(options),
     )
-    if hasattr(s, "shadow_budget"):
-        # every shadow map captured in the first warm-up frame: a steady state
-        s.shadow_budget = 1 << 40
-    return s
 
 
 class EnginePool:
     """One engine per stage; between configurations only its lighting method is
-    replaced (scene sync, G-buffer, shadow maps are method-independent), so a heavy
-    stage is loaded once. Falls back to a fresh engine if the engine's layout differs."""
+    replaced (``Engine.set_lighting``: scene sync, G-buffer and shadow maps are
+    method-independent), so a heavy stage is loaded once."""
 
     def __init__(self, stage, args) -> None:
         self.stage, self.args, self.eng = stage, args, None
@@ -186,27 +184,14 @@ class EnginePool:
     def get(self, unit: Unit):
         from ..renderer.engine import Engine
 
-        if self.eng is not None and self._swap(unit):
+        if self.eng is not None:
+            self.eng.set_lighting(unit.method, **unit.options)
+            self.eng.timings.frames.clear()
             return self.eng
         self.close()
         self.eng = Engine(self.stage, _settings(self.args, unit.method, unit.options),
                           time=self.args.time)
         return self.eng
-
-    def _swap(self, unit: Unit) -> bool:
-        from ..renderer.lighting import method_class
-
-        eng = self.eng
-        task = eng.task("lighting")
-        if task is None or not hasattr(task, "method") or not hasattr(eng, "method"):
-            return False
-        new = method_class(unit.method)(eng, **unit.options)
-        task.method.release()
-        task.method = eng.method = new
-        eng.settings.lighting = unit.method
-        eng.settings.method_options = dict(unit.options)
-        eng.timings.frames.clear()
-        return True
 
     def close(self) -> None:
         if self.eng is not None:

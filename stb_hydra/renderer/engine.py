@@ -1,20 +1,25 @@
-"""The engine: Hydra's four phases (sync, prepare, commit, execute) over tasks.
+"""The engine: Hydra's four phases (sync, prepare, commit, execute) over a pass graph.
 
     engine = Engine(stage, RenderSettings(width=256, height=144, lighting="reference"))
     frame = engine.render(time=1.0)            # one frame (accumulated if settings.accumulate > 1)
-    frame.aovs["color"]                        # (h, w, 4) float32 scene-linear, top row first
+    engine.aovs["color"]                       # (h, w, 4) float32 scene-linear, top row first
+    engine.set_lighting("stb", N=4)            # switch methods on a live engine
+    print(engine.describe())                   # the frame's pass graph
 
-Per frame: (1) sync: queued USD edits and the time change reach the render
-index, which syncs dirty prims; (2) prepare: camera, sun, light culling, shadow
-scheduling; (3) commit: the delegate uploads what changed; (4) execute: shadow
-maps -> G-buffer -> min/max depth -> lighting method -> accumulation ->
-colour correction -> AOV readback. Every phase/task is timed.
+Per frame: (1) sync: queued USD edits and the time change reach the render index,
+which syncs dirty prims, and the delegate commits what changed; (2) prepare: each
+pass in graph order (distant lights, culling, shadow scheduling, light upload,
+frame uniforms, method set-up); (3) execute: each pass in graph order (shadow
+maps -> G-buffer -> min/max depth -> lighting method -> accumulation -> colour
+correction -> AOV readback). The graph (``passes.py`` + ``graph.py``) is built
+from the passes' declarations and rebuilt only when the method, its options or
+the requested AOVs change. Every phase and pass is timed.
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
+from typing import Any
 
 import moderngl
 import numpy as np
@@ -22,26 +27,19 @@ from pxr import Usd
 
 from ..color.ocio import ColorPipeline
 from ..scene import prims
+from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import StageSceneIndex
 from .camera import ViewSetup, framing_camera, view_setup
-from .frame import FrameContext, RenderBuffers, RenderSettings, Timings, timed
-from .frame_data import FrameUniforms, SunSetup, pack_frame_block
+from .frame import FrameContext, RenderBuffers, RenderSettings, ScopedBuffers, Timings, timed
+from .fullscreen import release_fullscreen
 from .gl import get_context, park, shader_library
 from .gl_delegate import GLRenderDelegate
-from .light_table import TYPE_CODES
+from .graph import FORMATS, CompiledGraph, Rec, Tex, compile_graph
 from .lighting import method_class
+from .lighting.base import LightingMethod
+from .passes import IMPORTS, PassSet, build_passes
 from .render_index import RenderIndex
-from .tasks.aov_output import AovOutputTask
-from .tasks.color_correction import ColorCorrectionTask
-from .tasks.gbuffer import GBufferTask
-from .tasks.hiz import HiZTask
-from .tasks.light_cull import LightCullTask
-from .tasks.lighting import LightingTask
-from .tasks.shadow import SunShadowTask
-from .tasks.shadow_atlas import ShadowAtlasTask
-from .tasks.taa import AccumulateTask
-
-LUMA = np.array([0.2126, 0.7152, 0.0722])
+from .tasks.base import Pass
 
 
 class RenderError(RuntimeError):
@@ -60,11 +58,9 @@ class Engine:
     ) -> None:
         self.settings = settings or RenderSettings()
         if not isinstance(stage, Usd.Stage):
-            from ..apps.common import CliError, open_stage
-
             try:
                 stage = open_stage(stage)
-            except CliError as exc:
+            except StageOpenError as exc:
                 raise RenderError(str(exc)) from None
         self.stage = stage
         self.ctx = ctx or get_context()
@@ -73,48 +69,120 @@ class Engine:
         self.render_index = RenderIndex(self.scene_index, self.delegate)
         self.color = color or ColorPipeline()
         self.buffers = RenderBuffers(self.ctx)
-        self.uniforms = FrameUniforms(self.ctx)
         self.timings = Timings()
-        self._fs_vaos: dict[int, moderngl.VertexArray] = {}
-        self._prev_view_proj: np.ndarray | None = None
         self.frame_index = 0
-        method = method_class(self.settings.lighting)(self, **self.settings.method_options)
-        self.method = method
-        self.accumulate = AccumulateTask(self)
-        self.aov_output = AovOutputTask(self)
-        self.tasks = [
-            LightCullTask(self),
-            SunShadowTask(self),
-            ShadowAtlasTask(self, self.settings.shadow_atlas_size, self.settings.shadow_budget),
-            GBufferTask(self),
-            HiZTask(self),
-            LightingTask(self, method),
-            self.accumulate,
-            ColorCorrectionTask(self, self.color),
-            self.aov_output,
-        ]
-        self._task_by_name = {t.name: t for t in self.tasks}
         self.camera_path: str | None = None
         self._free_camera: prims.CameraPrim | None = None
         self.warnings: list[str] = []
         self._seen_warnings: set[str] = set()
         self._in_sequence = False
+        self._requested_aovs: set[str] = {"color"}
+        self._graph: CompiledGraph | None = None
+        self._allocated: tuple[int, int, int] | None = None
+        self.method: LightingMethod = self._make_method(
+            self.settings.lighting, self.settings.method_options
+        )
+        self._set: PassSet = self._build_passes()
         self._sync(None)  # first sync so bounds/cameras are known
         self._choose_camera()
         if not self.settings.height:
             cam, _ = self.camera()
             self.settings.height = max(1, round(self.settings.width / max(cam.aspect, 1e-6)))
 
-    # -- helpers --
-    def task(self, name: str):
-        return self._task_by_name.get(name)
+    # -- the pass graph --
+    def _make_method(self, name: str, options: dict[str, Any]) -> LightingMethod:
+        return method_class(name)(self.delegate, self._warn_once, **options)
 
-    def fullscreen(self, prog: moderngl.Program) -> moderngl.VertexArray:
-        vao = self._fs_vaos.get(prog.glo)
-        if vao is None:
-            vao = self.ctx.vertex_array(prog, [])
-            self._fs_vaos[prog.glo] = vao
-        return vao
+    def _build_passes(self) -> PassSet:
+        ps = build_passes(self.ctx, self.delegate, self.settings, self.method, self.color)
+        ps.aov_output.requested = self._requested_aovs
+        ps.aov_output.on_change = self._invalidate_graph
+        self._graph = None
+        return ps
+
+    def _invalidate_graph(self) -> None:
+        self._graph = None
+
+    @property
+    def graph(self) -> CompiledGraph:
+        """The compiled pass graph (built on first use after a change)."""
+        if self._graph is None:
+            self._graph = compile_graph(self._set.passes, IMPORTS)
+            self._allocated = None
+        return self._graph
+
+    def describe(self) -> str:
+        """The frame's pass graph as text (``stb render --print-graph``)."""
+        w, h = self.settings.width, self.settings.height or 0
+        return f"lighting method: {self.method.name}\n" + self.graph.describe((w, h))
+
+    def set_lighting(self, name: str, **options: Any) -> None:
+        """Switch the lighting method (and its options) on a live engine; the scene,
+        the shadow atlas and the render buffers are kept."""
+        method = self._make_method(name, options)  # validates before anything changes
+        old = self._set
+        for p in old.passes:
+            if p is not old.shadow_atlas and p is not old.frame_uniforms:
+                p.release()
+        self.method = method
+        self.settings.lighting = name
+        self.settings.method_options = dict(options)
+        atlas, uniforms = old.shadow_atlas, old.frame_uniforms
+        self._set = self._build_passes()
+        # Keep the long-lived state: captured shadow maps and the previous view.
+        self._set.frame_uniforms.release()
+        self._swap(self._set.frame_uniforms, uniforms)
+        atlas.enabled = self.settings.shadows and method.uses_local_lights
+        self._set.shadow_atlas.release()
+        self._swap(self._set.shadow_atlas, atlas)
+
+    def _swap(self, new: Pass, keep: Pass) -> None:
+        ps = self._set
+        ps.passes[ps.passes.index(new)] = keep
+        if new is ps.shadow_atlas:
+            ps.shadow_atlas = keep  # type: ignore[assignment]
+        if new is ps.frame_uniforms:
+            ps.frame_uniforms = keep  # type: ignore[assignment]
+        self._graph = None
+
+    def _allocate(self) -> None:
+        """Allocate the graph's render buffers at the viewport size (once per size
+        and graph)."""
+        graph = self.graph
+        key = (*self.buffers.size, id(graph))
+        if self._allocated == key:
+            return
+        w, h = self.buffers.size
+        for t in graph.textures():
+            size = t.size.resolve(w, h)
+            if size is None:
+                continue
+            comps, dtype = FORMATS[t.fmt]
+            if dtype == "depth":
+                cur = self.buffers.textures.get(t.name)
+                if cur is None or cur.size != size:
+                    self.buffers.set_texture(t.name, self.ctx.depth_texture(size))
+            else:
+                self.buffers.texture(t.name, comps, dtype, size=size)
+        self._allocated = key
+
+    @property
+    def tasks(self) -> list[Pass]:
+        """The scheduled passes in execution order."""
+        return self.graph.passes
+
+    @property
+    def accumulate(self):
+        return self._set.accumulate
+
+    @property
+    def aov_output(self):
+        return self._set.aov_output
+
+    # -- helpers --
+    def task(self, name: str) -> Pass | None:
+        """The registered pass called ``name`` (scheduled or not), or None."""
+        return next((p for p in self._set.passes if p.name == name), None)
 
     @property
     def renderer_info(self) -> str:
@@ -172,40 +240,6 @@ class Engine:
                 self._seen_warnings.add(w)
                 self.warnings.append(w)
 
-    def _sun_and_ambient(self, frame: FrameContext) -> None:
-        t = self.delegate.light_table
-        rows = t.rows_of_type(prims.DISTANT_LIGHT)
-        rows = rows[t.enabled[rows]]
-        if len(rows):
-            lum = t.intensity[rows] @ LUMA
-            order = rows[np.argsort(-lum, kind="stable")]
-            r = int(order[0])
-            sun = SunSetup()
-            sun.direction_to_sun = -t.direction[r].astype(np.float64)
-            sun.illuminance = t.intensity[r].astype(np.float64)
-            sun.enabled = True
-            sun.shadow = bool(t.shadow_enable[r])
-            sun.diffuse, sun.specular = float(t.diffuse[r]), float(t.specular[r])
-            sun.shadow_color = t.shadow_color[r].astype(np.float64)
-            frame.sun = sun
-            extra = []
-            for r2 in order[1:4]:
-                extra.append(
-                    (
-                        -t.direction[r2].astype(np.float64),
-                        t.intensity[r2].astype(np.float64),
-                        float(t.diffuse[r2]),
-                        float(t.specular[r2]),
-                    )
-                )
-            frame.extra_distant = extra
-            if len(order) > 4:
-                self._warn_once(f"{len(order)} distant lights: only the 4 brightest are used")
-        domes = t.rows_of_type(prims.DOME_LIGHT)
-        domes = domes[t.enabled[domes]]
-        amb = t.intensity[domes].sum(axis=0).astype(np.float64) if len(domes) else np.zeros(3)
-        frame.ambient = amb + self.settings.ambient
-
     def _warn_once(self, msg: str) -> None:
         if msg not in self._seen_warnings:
             self._seen_warnings.add(msg)
@@ -226,6 +260,7 @@ class Engine:
         cam, exposure = self.camera()
         view: ViewSetup = view_setup(cam, s.width, s.height, exposure)
         self.buffers.resize(s.width, s.height)
+        self._allocate()
         fidx = self.frame_index
         frame = FrameContext(
             self.ctx,
@@ -237,41 +272,30 @@ class Engine:
             seed=(s.seed * 7919 + (fidx if seed is None else seed)) & 0xFFFFFFFF,
             final=final,
         )
+        passes = self.graph.passes
         with timed(self.timings, "prepare", None, False):
-            self._sun_and_ambient(frame)
-            for t in self.tasks:
-                t.sync(frame)
-            for t in self.tasks:
-                with timed(self.timings, "prepare." + t.name, None, False):
-                    t.prepare(frame)
-        with timed(self.timings, "commit.lights", None, False):
-            frame.stats["light_upload"] = self.delegate.upload_fov_lights()
-        prev = self._prev_view_proj if self._prev_view_proj is not None else view.view_proj
-        big = (math.ceil(s.width / 128), math.ceil(s.height / 128))
-        self.uniforms.update(
-            pack_frame_block(
-                view,
-                prev,
-                frame.sun,
-                frame.ambient,
-                frame.light_count,
-                fidx,
-                frame.seed,
-                big,
-                frame.extra_distant,
-            )
-        )
-        for t in self.tasks:
-            if t.only_final and not final:
+            for p in passes:
+                with self._scope(frame, p):
+                    p.sync(frame)
+            for p in passes:
+                with timed(self.timings, "prepare." + p.name, None, False), self._scope(frame, p):
+                    p.prepare(frame)
+        for p in passes:
+            if p.only_final and not final:
                 continue
-            with timed(self.timings, t.name, self.ctx, s.profile):
-                t.execute(frame)
-        self._prev_view_proj = view.view_proj
+            with timed(self.timings, p.name, self.ctx, s.profile), self._scope(frame, p):
+                p.execute(frame)
+        frame.buffers = self.buffers
+        for w in frame.warnings:
+            self._warn_once(w)
         park(self.ctx)
         self.frame_index += 1
         self.timings.end_frame()
         frame.stats["programs_compiled"] = shader_library(self.ctx).compiled
         return frame
+
+    def _scope(self, frame: FrameContext, p: Pass) -> _PassScope:
+        return _PassScope(self.buffers, frame, p)
 
     def render(self, time: float | None = None, accumulate: int | None = None) -> FrameContext:
         """Render ``accumulate`` frames (distinct seeds, same time) and average them."""
@@ -291,19 +315,41 @@ class Engine:
         return self.aov_output.results
 
     def request_aovs(self, names) -> None:
-        self.aov_output.requested = set(names) | {"color"}
+        """AOVs read back on the last frame of each render (``color`` always)."""
+        self._requested_aovs = set(names) | {"color"}
+        self.aov_output.requested = self._requested_aovs
 
     def release(self) -> None:
         park(self.ctx)
-        for t in self.tasks:
-            t.release()
-        for vao in self._fs_vaos.values():
-            vao.release()
-        self._fs_vaos.clear()
+        for p in self._set.passes:
+            p.release()
+        release_fullscreen(self.ctx)
         self.buffers.release()
-        self.uniforms.release()
         self.delegate.release()
         self.scene_index.close()
 
 
-_ = TYPE_CODES
+class _PassScope:
+    """While a pass runs: the frame's records and buffers restricted to what it
+    declared (undeclared access raises ``PassScopeError`` naming pass and resource)."""
+
+    def __init__(self, buffers: RenderBuffers, frame: FrameContext, p: Pass) -> None:
+        reads, writes = p.io()
+        self.frame = frame
+        self.name = p.name
+        self.rec_reads = frozenset(r.cls for r in reads if isinstance(r, Rec))
+        self.rec_writes = frozenset(w.cls for w in writes if isinstance(w, Rec))
+        self.view = ScopedBuffers(
+            buffers,
+            p.name,
+            {r.name for r in reads if isinstance(r, Tex)},
+            {w.name for w in writes if isinstance(w, Tex)},
+        )
+
+    def __enter__(self) -> _PassScope:
+        self.frame.enter(self.name, self.rec_reads, self.rec_writes)
+        self.frame.buffers = self.view
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.frame.leave()

@@ -5,12 +5,16 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import moderngl
 import numpy as np
 
+from .. import limits
 from .camera import ViewSetup
 from .frame_data import SunSetup
+
+T = TypeVar("T")
 
 
 @dataclass
@@ -25,9 +29,13 @@ class RenderSettings:
     sun_shadow_size: int = 2048
     #: Local-light shadows from the atlas (False: every local light unshadowed).
     shadows: bool = True
-    #: Shadow atlas side (texels) and per-frame capture budget (texels rendered);
-    #: None = limits.SHADOW_ATLAS_SIZE_DEFAULT / SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT.
+    #: Shadow atlas side (texels); None = limits.SHADOW_ATLAS_SIZE_DEFAULT.
     shadow_atlas_size: int | None = None
+    #: Shadow-map capture budget, resolved here and nowhere else:
+    #: None = offline (every shadow map is captured before the frame: what a still
+    #: from ``stb render`` or ``stb_hydra.render`` shows); a positive number = the
+    #: real-time budget in texels rendered per frame (maps refresh over several
+    #: frames, e.g. ``limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT``). 0 is an error.
     shadow_budget: int | None = None
     #: Local shadow filter: "pcf" (4-tap gather) or "stochastic" (gather + a random
     #: sub-texel offset per pixel and frame; converges softer under accumulation).
@@ -36,8 +44,22 @@ class RenderSettings:
     ambient: float = 0.0
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).
     profile: bool = False
-    #: Lighting-method specific options (``render.lighting.<method>``).
+    #: Lighting-method specific options (``renderer.lighting.<method>.options``).
     method_options: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        b = self.shadow_budget
+        if b is not None and (isinstance(b, bool) or int(b) != b or b <= 0):
+            raise ValueError(
+                f"shadow_budget must be a positive number of texels per frame, or None for "
+                f"offline renders (every map captured before the frame); got {b!r}"
+            )
+
+    def realtime_shadow_budget(self) -> int:
+        """Texels the shadow scheduler may render per frame (offline: unbounded)."""
+        if self.shadow_budget is None:
+            return limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
+        return int(self.shadow_budget)
 
 
 class Timings:
@@ -143,25 +165,147 @@ class RenderBuffers:
         self._fbo_deps.clear()
 
 
+class PassScopeError(KeyError):
+    """A pass touched a resource it did not declare."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class ScopedBuffers:
+    """The render buffers as one pass may see them: only what it declared."""
+
+    def __init__(self, buffers: RenderBuffers, pass_name: str, reads: set[str], writes: set[str]):
+        self._b = buffers
+        self._pass = pass_name
+        self._reads = reads | writes
+        self._writes = writes
+        self.ctx = buffers.ctx
+        self.textures = _ScopedTextures(self)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self._b.size
+
+    def _check(self, name: str, write: bool) -> None:
+        allowed = self._writes if write else self._reads
+        if name not in allowed:
+            what = "write" if write else "read"
+            raise PassScopeError(
+                f"pass '{self._pass}' tried to {what} texture '{name}' without declaring it"
+            )
+
+    def texture(self, name: str, components: int, dtype: str, size=None, nearest: bool = True):
+        self._check(name, True)
+        return self._b.texture(name, components, dtype, size, nearest)
+
+    def set_texture(self, name: str, tex: moderngl.Texture) -> None:
+        self._check(name, True)
+        self._b.set_texture(name, tex)
+
+    def framebuffer(self, name: str, colors: list[str], depth: str | None = None):
+        for c in (*colors, *([depth] if depth else [])):
+            self._check(c, True)
+        return self._b.framebuffer(name, colors, depth)
+
+
+class _ScopedTextures:
+    def __init__(self, scope: ScopedBuffers) -> None:
+        self._s = scope
+
+    def __getitem__(self, name: str) -> moderngl.Texture:
+        self._s._check(name, False)
+        return self._s._b.textures[name]
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self._s._reads and name in self._s._b.textures
+
+    def get(self, name: str, default=None):
+        return self[name] if name in self else default
+
+
 @dataclass
 class FrameContext:
+    """One frame: view, settings, render buffers, timings and the typed records
+    passes exchange (``put``/``get``, checked against the running pass's
+    declarations; cleared every frame)."""
+
     ctx: moderngl.Context
     settings: RenderSettings
     view: ViewSetup
-    buffers: RenderBuffers
+    buffers: RenderBuffers | ScopedBuffers
     timings: Timings
     frame_index: int = 0
     seed: int = 0
-    sun: SunSetup = field(default_factory=SunSetup)
-    ambient: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    #: Extra distant lights (direction to light, illuminance lux RGB, diffuse, specular).
-    extra_distant: list = field(default_factory=list)
-    light_count: int = 0
     stats: dict = field(default_factory=dict)
-    #: Name of the buffer holding this frame's scene-linear lighting result.
-    color_buffer: str = "lighting"
     #: Last frame of an accumulation sequence (display + readback run only then).
     final: bool = True
+    records: dict[type, object] = field(default_factory=dict)
+    #: Warnings about the user's scene raised by passes (the engine deduplicates).
+    warnings: list[str] = field(default_factory=list)
+    _scope: tuple[str, frozenset[type], frozenset[type]] | None = None
+
+    def warn(self, msg: str) -> None:
+        """A one-line warning about the scene (collected by the engine)."""
+        self.warnings.append(msg)
+
+    # -- records --
+    def enter(self, name: str, reads: frozenset[type], writes: frozenset[type]) -> None:
+        self._scope = (name, reads, writes)
+
+    def leave(self) -> None:
+        self._scope = None
+
+    def put(self, record: object) -> None:
+        cls = type(record)
+        if self._scope is not None and cls not in self._scope[2]:
+            raise PassScopeError(
+                f"pass '{self._scope[0]}' wrote record {cls.__name__} without declaring it"
+            )
+        self.records[cls] = record
+
+    def get(self, cls: type[T]) -> T:
+        if self._scope is not None and cls not in self._scope[1] and cls not in self._scope[2]:
+            raise PassScopeError(
+                f"pass '{self._scope[0]}' read record {cls.__name__} without declaring it"
+            )
+        rec = self.records.get(cls)
+        if rec is None:
+            who = self._scope[0] if self._scope else "?"
+            raise PassScopeError(
+                f"pass '{who}' read record {cls.__name__} before any pass wrote it this frame"
+            )
+        return rec  # type: ignore[return-value]
+
+    def has(self, cls: type) -> bool:
+        """True when ``cls`` was written this frame (for optional reads)."""
+        return cls in self.records
+
+    # -- convenience views of common records --
+    @property
+    def light_count(self) -> int:
+        """Lights in view (``InViewLights``; 0 when no pass culls lights)."""
+        from .records import InViewLights
+
+        return self.get(InViewLights).count if self.has(InViewLights) else 0
+
+    @property
+    def sun(self) -> SunSetup:
+        from .records import DistantLights
+
+        return self.get(DistantLights).sun
+
+    @property
+    def ambient(self) -> np.ndarray:
+        from .records import DistantLights
+
+        return self.get(DistantLights).ambient
+
+    @property
+    def extra_distant(self) -> list:
+        from .records import DistantLights
+
+        return self.get(DistantLights).extra
 
     def timings_scope(self, name: str) -> timed:
         """Time a sub-pass as ``lighting.<name>`` (ctx.finish() when profiling)."""

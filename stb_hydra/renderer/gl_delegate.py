@@ -22,7 +22,7 @@ from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits as D
 from .delegate import RenderDelegate
-from .light_buffer import LIGHT_STRIDE_BYTES, cull_lights, pack_lights
+from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
 
 _GEOM_BITS = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
 _BATCH_BITS = (
@@ -98,13 +98,12 @@ class GLRenderDelegate(RenderDelegate):
         self._batches_dirty = True
         self._static_changed: set[str] = set()
         self.light_ssbo: moderngl.Buffer | None = None
-        self.fov_rows = np.zeros(0, dtype=np.int64)
         self._fov_version = -1
         self._fov_uploaded_rows: np.ndarray | None = None
         self._fov_uploaded_maps: np.ndarray | None = None
         #: The packed records last uploaded (partial updates patch it in place).
         self._fov_packed: np.ndarray | None = None
-        #: Records written by the last upload (0: none; len(fov_rows): full).
+        #: Records written by the last upload (0: none; len(rows): full).
         self.last_upload_records = 0
         self.ies_texture: moderngl.TextureArray | None = None
         self._ies_version = -1
@@ -116,15 +115,11 @@ class GLRenderDelegate(RenderDelegate):
             "light_partial_uploads": 0,
             "instance_uploads": 0,
         }
-        #: Shadow-map index per FoV light (set by the shadow task), or None.
-        self.fov_shadow_maps: np.ndarray | None = None
         #: World bounds per mesh prim, and the bounds static geometry changed in
         #: since the shadow task last looked (old and new): static shadow maps in
         #: range of these must be re-captured.
         self.mesh_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self.changed_static_bounds: list[tuple[np.ndarray, np.ndarray]] = []
-        #: Features present among the FoV lights (selects shader variants).
-        self.fov_flags: dict[str, bool] = {"cones": False, "ies": False, "shadows": False}
 
     # -- render prim hooks --
     def release_mesh(self, path: str) -> None:
@@ -330,26 +325,12 @@ class GLRenderDelegate(RenderDelegate):
         return vao
 
     # -- lights --
-    def cull_fov(self, planes: np.ndarray) -> np.ndarray:
-        """Cull lights against the frustum; the FoV list for this frame."""
-        rows = cull_lights(self.light_table, planes)
-        t = self.light_table
-        self.fov_flags = {
-            "cones": bool(np.any(t.cone_cutoff[rows] < np.float32(3.14159))),
-            "ies": bool(np.any(t.ies_layer[rows] >= 0)),
-            "shadows": False,
-        }
-        self.fov_rows = rows
-        self.fov_shadow_maps = None
-        return rows
-
-    def upload_fov_lights(self) -> bool:
-        """Upload the packed FoV light buffer if the culled set, a culled light or
-        the shadow-map assignment changed. Returns True when it uploaded."""
-        rows = self.fov_rows
+    def upload_lights(self, rows: np.ndarray, maps: np.ndarray | None) -> bool:
+        """Upload the packed light buffer of ``rows`` (light-table rows in SSBO order)
+        with shadow-map slots ``maps`` (per row, -1 = none; None = shadows off) if the
+        set, one of its lights or the slot assignment changed; only the changed span
+        when the set is the same. Returns True when it uploaded."""
         version = int(self.light_table.version)
-        maps = self.fov_shadow_maps
-        self.fov_flags["shadows"] = maps is not None and bool(np.any(maps >= 0))
         same_rows = self._fov_uploaded_rows is not None and np.array_equal(
             rows, self._fov_uploaded_rows
         )
@@ -382,7 +363,7 @@ class GLRenderDelegate(RenderDelegate):
             # slots, edited lights) and upload their span, not the whole buffer.
             packed = self._fov_packed
             if len(moved):
-                packed[moved, 26] = maps[moved]
+                packed[moved, LIGHT_SHADOW_SLOT_COLUMN] = maps[moved]
             if len(changed_rows):
                 sub = None if maps is None else maps[changed_rows]
                 packed[changed_rows] = pack_lights(self.light_table, rows[changed_rows], sub)
@@ -410,11 +391,6 @@ class GLRenderDelegate(RenderDelegate):
         self.last_upload_records = len(rows)
         self.stats["light_uploads"] += 1
         return True
-
-    def update_fov_lights(self, planes: np.ndarray) -> bool:
-        """Cull + upload in one step (tools and tests)."""
-        self.cull_fov(planes)
-        return self.upload_fov_lights()
 
     def _upload_ies(self) -> None:
         from ..scene.lights import _load_ies_cached

@@ -13,6 +13,9 @@ from .light_table import LightTable
 
 LIGHT_STRIDE_FLOATS = 36  # 9 x vec4
 LIGHT_STRIDE_BYTES = LIGHT_STRIDE_FLOATS * 4
+#: Float column of the shadow-map record slot (``Light.shadow.x`` in lights.glsl;
+#: -1 = unshadowed): the one column patched when only slots change.
+LIGHT_SHADOW_SLOT_COLUMN = 26
 
 
 def cull_lights(table: LightTable, planes: np.ndarray) -> np.ndarray:
@@ -63,7 +66,7 @@ def pack_lights(
     out[:, 23] = t.ies_layer[rows]
     out[:, 24] = t.ies_scale[rows]
     out[:, 25] = t.ies_angle_scale[rows]
-    out[:, 26] = -1.0 if shadow_maps is None else shadow_maps
+    out[:, LIGHT_SHADOW_SLOT_COLUMN] = -1.0 if shadow_maps is None else shadow_maps
     out[:, 27] = t.shadow_enable[rows].astype(np.float32) + 2.0 * t.shadow_dynamic[rows]
     out[:, 28:31] = t.shadow_color[rows]
     out[:, 31] = t.shadow_distance[rows]

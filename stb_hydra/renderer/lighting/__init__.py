@@ -1,33 +1,59 @@
-"""Lighting methods, one module each. ``METHODS`` maps CLI names to classes."""
+"""Lighting methods, one module each. ``METHODS`` maps CLI names to classes: a plain
+literal registry (adding a method = one module + one line here)."""
 
 from __future__ import annotations
 
-import importlib
+from typing import Any
 
-_REGISTRY = {
-    "reference": ("reference", "ReferenceLighting"),
-    "sun": ("sun_only", "SunOnlyLighting"),
-    "stb": ("stb", "StbLighting"),
-    "tiled": ("tiled", "TiledLighting"),
-    "clustered": ("clustered", "ClusteredLighting"),
-    "lighttree": ("light_tree", "LightTreeLighting"),
+from .base import LightingMethod
+from .clustered import ClusteredLighting
+from .light_tree import LightTreeLighting
+from .options import OptionError, Schema
+from .reference import ReferenceLighting
+from .stb import StbLighting
+from .sun_only import SunOnlyLighting
+from .tiled import TiledLighting
+
+METHODS: dict[str, type[LightingMethod]] = {
+    "reference": ReferenceLighting,
+    "sun": SunOnlyLighting,
+    "stb": StbLighting,
+    "tiled": TiledLighting,
+    "clustered": ClusteredLighting,
+    "lighttree": LightTreeLighting,
 }
 
 
-def register(name: str, module: str, cls: str) -> None:
-    _REGISTRY[name] = (module, cls)
-
-
 def available() -> list[str]:
-    out = []
-    for name, (mod, _cls) in _REGISTRY.items():
-        if importlib.util.find_spec(f"{__name__}.{mod}") is not None:
-            out.append(name)
-    return out
+    """Names of the registered lighting methods (CLI order)."""
+    return list(METHODS)
 
 
-def method_class(name: str):
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown lighting method '{name}' (choose from {', '.join(available())})")
-    mod, cls = _REGISTRY[name]
-    return getattr(importlib.import_module(f"{__name__}.{mod}"), cls)
+def method_class(name: str) -> type[LightingMethod]:
+    """The class registered as ``name`` (ValueError naming the choices)."""
+    cls = METHODS.get(name)
+    if cls is None:
+        raise ValueError(f"unknown lighting method '{name}' (choose from {', '.join(METHODS)})")
+    return cls
+
+
+def validate_options(name: str, options: dict[str, Any]) -> dict[str, Any]:
+    """``options`` of method ``name`` validated and completed with defaults."""
+    return method_class(name).validate_options(options)
+
+
+def debug_aov_names() -> tuple[str, ...]:
+    """Every debug AOV any method declares (in registry order, no duplicates)."""
+    return tuple(dict.fromkeys(a for cls in METHODS.values() for a in cls.debug_aovs))
+
+
+__all__ = [
+    "METHODS",
+    "LightingMethod",
+    "OptionError",
+    "Schema",
+    "available",
+    "debug_aov_names",
+    "method_class",
+    "validate_options",
+]

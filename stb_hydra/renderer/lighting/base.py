@@ -1,34 +1,117 @@
-"""Lighting-method interface. A method turns the G-buffer (+ lights, shadows) into
-scene-linear radiance in the 'lighting' buffer. Methods share the BRDF, light,
-IES and shadow includes, so images compare pixel for pixel."""
+"""The lighting-method contract. A method turns the G-buffer (+ lights, shadows)
+into scene-linear radiance in the ``lighting`` buffer. Methods share the BRDF,
+light, IES and shadow includes, so images compare pixel for pixel.
+
+A method declares, as class-level data:
+
+* ``name`` - its CLI name (``--lighting``), registered in ``lighting/__init__.py``;
+* ``options`` - a :class:`~.options.Schema` (validated in one place; cross-option
+  rules in ``check_options``);
+* ``debug_aovs`` - the debug views it can draw (``stb render --aov``), each drawn by
+  a pass from ``debug_passes()`` that joins the graph only when asked for;
+* ``uses_local_lights`` and ``hiz_level`` - what the engine must schedule for it;
+* ``internal`` - its own render buffers (``Tex`` writes of the lighting pass).
+
+Its passes read the standard inputs in ``READS``; everything is bound through
+``bind_common`` from the frame's records, never through the engine.
+"""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import moderngl
 
+from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
+from ..graph import Rec, Resource, Tex
+from ..records import (
+    DistantLights,
+    FrameBlock,
+    InViewLights,
+    LightBuffer,
+    ShadowSlots,
+    SunShadowMap,
+)
+from .options import Schema
 
 if TYPE_CHECKING:
-    from ..engine import Engine
+    from ...renderer.tasks.base import Pass
     from ..frame import FrameContext
+    from ..gl_delegate import GLRenderDelegate
 
-GBUFFER_SAMPLERS = ("g_depth", "g_normal", "g_base_rough", "g_f0_metal", "g_emission")
+#: G-buffer textures the shared lighting code samples, with their formats.
+GBUFFER_INPUTS: tuple[Tex, ...] = (
+    Tex("g_depth", "r32f"),
+    Tex("g_normal", "rg16f"),
+    Tex("g_base_rough", "rgba16f"),
+    Tex("g_f0_metal", "rgba16f"),
+    Tex("g_emission", "rgba16f"),
+)
+GBUFFER_SAMPLERS = tuple(t.name for t in GBUFFER_INPUTS)
+
+#: What every lighting method reads.
+READS: tuple[Resource, ...] = (
+    *GBUFFER_INPUTS,
+    Rec(FrameBlock),
+    Rec(DistantLights),
+    Rec(InViewLights),
+    Rec(LightBuffer),
+    Rec(ShadowSlots),
+    Rec(SunShadowMap),
+)
+
+Warn = Callable[[str], None]
 
 
 class LightingMethod:
-    name = "base"
-    #: True when the method evaluates local lights (needs culling/light buffer).
-    uses_local_lights = True
+    name: ClassVar[str] = "base"
+    #: Class-level option schema (``-o KEY=VALUE``).
+    options: ClassVar[Schema] = Schema()
+    #: Debug AOVs this method draws (names in ``tasks/aov_output.AOVS``).
+    debug_aovs: ClassVar[tuple[str, ...]] = ()
+    #: True when the method evaluates local lights (culling, light buffer, atlas).
+    uses_local_lights: ClassVar[bool] = True
+    #: Min/max depth pyramid level the method samples (0: none); may depend on options.
+    hiz_level: int = 0
 
-    def __init__(self, engine: Engine, **options) -> None:
-        self.engine = engine
-        self.options = options
+    def __init__(
+        self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
+    ) -> None:
+        self.delegate = delegate
+        self.warn: Warn = warn or (lambda _msg: None)
+        #: Validated options (defaults filled in).
+        self.o: dict[str, Any] = self.validate_options(options)
 
+    # -- the contract --
+    @classmethod
+    def validate_options(cls, given: Mapping[str, Any]) -> dict[str, Any]:
+        """All options of this method, validated (raises ``OptionError``)."""
+        o = cls.options.validate(cls.name, given)
+        cls.check_options(o)
+        return o
+
+    @classmethod
+    def check_options(cls, o: dict[str, Any]) -> None:
+        """Rules between options (after each one is typed and in range); may
+        normalise values in place. Raise ``OptionError`` naming the method."""
+
+    def internal(self) -> tuple[Tex, ...]:
+        """The method's own render buffers (written by the lighting pass)."""
+        return ()
+
+    def reads(self) -> tuple[Resource, ...]:
+        extra = (Tex(f"hiz{self.hiz_level}", "rg32f"),) if self.hiz_level else ()
+        return (*READS, *extra)
+
+    def debug_passes(self) -> list[Pass]:
+        """Passes drawing ``debug_aovs`` (each writes ``debug_<aov>``)."""
+        return []
+
+    # -- shared helpers --
     def scene_defines(self, frame: FrameContext) -> dict[str, object]:
         """Feature defines from what the scene has (compile only what is needed)."""
-        d = self.engine.delegate
         defines: dict[str, object] = {}
         if frame.sun.enabled or frame.extra_distant:
             defines["HAS_SUN"] = True
@@ -36,59 +119,62 @@ class LightingMethod:
             defines["HAS_SUN_SHADOW"] = True
         if float(frame.ambient.max()) > 0:
             defines["HAS_AMBIENT"] = True
-        if self.uses_local_lights and frame.light_count:
-            if d.has_ies and d.fov_flags["ies"]:
+        lights = frame.get(InViewLights)
+        if self.uses_local_lights and lights.count:
+            if self.delegate is not None and self.delegate.has_ies and lights.has_ies:
                 defines["HAS_IES"] = True
-            if d.fov_flags["cones"]:
+            if lights.has_cones:
                 defines["HAS_CONES"] = True
-            if d.fov_flags["shadows"]:
+            if frame.get(LightBuffer).has_shadows:
                 defines["HAS_SHADOWS"] = True
                 if frame.settings.shadow_filter == "stochastic":
                     defines["STOCHASTIC_PCF"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:
-        """Bind G-buffer samplers, light buffer, IES array, sun shadow. Returns next unit."""
+        """Bind G-buffer samplers, light buffer, IES array, shadow atlas and records,
+        sun shadow. Returns the next free texture unit."""
         unit = first_unit
-        bufs = frame.buffers
+        tex = frame.buffers.textures
         for name in GBUFFER_SAMPLERS:
             if name in prog:
-                bufs.textures[name].use(unit)
+                tex[name].use(unit)
                 prog[name].value = unit
                 unit += 1
-        d = self.engine.delegate
-        if d.light_ssbo is not None:
-            d.light_ssbo.bind_to_storage_buffer(0)
-        if "u_ies" in prog and d.ies_texture is not None:
+        lb = frame.get(LightBuffer)
+        if lb.ssbo is not None:
+            lb.ssbo.bind_to_storage_buffer(0)
+        d = self.delegate
+        if d is not None and "u_ies" in prog and d.ies_texture is not None:
             d.ies_texture.use(unit)
             prog["u_ies"].value = unit
             unit += 1
-        atlas = self.engine.task("shadow_atlas")
-        if atlas is not None:
-            unit = atlas.bind(prog, unit)
-        sun = self.engine.task("shadow")
-        if "u_sun_shadow" in prog and sun is not None and sun.texture is not None:
+        slots = frame.get(ShadowSlots)
+        if slots.records is not None:
+            slots.records.bind_to_storage_buffer(1)
+        if slots.atlas is not None and "u_shadow_atlas" in prog:
+            slots.atlas.use(unit)
+            prog["u_shadow_atlas"].value = unit
+            unit += 1
+        sun = frame.get(SunShadowMap)
+        if "u_sun_shadow" in prog and sun.texture is not None:
             sun.texture.use(unit)
             prog["u_sun_shadow"].value = unit
             unit += 1
         return unit
 
     def prepare(self, frame: FrameContext) -> None:
-        pass
+        """CPU work before the frame's uniforms are written."""
 
     def execute(self, frame: FrameContext) -> None:
         raise NotImplementedError
 
     def fullscreen_pass(self, frame: FrameContext, prog: moderngl.Program, target: str) -> None:
-        ctx = frame.ctx
         fbo = frame.buffers.framebuffer("fb_" + target, [target])
-        fbo.use()
-        ctx.viewport = (0, 0, *frame.buffers.size)
-        ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-        self.engine.fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
+        draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
 
     def release(self) -> None:
-        pass
+        """Free GL objects the method owns."""
 
 
 def program(frame: FrameContext, frag: str, defines: dict[str, object]) -> moderngl.Program:

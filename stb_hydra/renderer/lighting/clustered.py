@@ -24,14 +24,14 @@ drops counted in ``frame.stats["dropped_lights"]``). Without a cap the image equ
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ... import limits
 from ..gl import set_uniform, shader_library
+from ..records import InViewLights, LightBuffer
 from .base import LightingMethod, program
 from .light_tree_build import ClusterGrid, ViewParams, auto_depth_range, bin_lights, cell_lists
+from .options import Opt, OptionError, Schema
 from .tiled import (
     BIND_EXTRA,
     BIND_HEADERS,
@@ -41,49 +41,49 @@ from .tiled import (
     parse_cap,
     read_stats,
     shade_direct,
-    warn,
 )
 
-GRID_DEFAULTS = {
-    "tile": limits.CLUSTER_TILE_PX_DEFAULT,
-    "slices": limits.CLUSTER_SLICES_DEFAULT,
-    "near_split": None,
-    "far": None,
-}
-DEFAULTS = {**GRID_DEFAULTS, "assign": "cpu", "cap": None}
+GRID_OPTIONS = Schema(
+    Opt("tile", int, limits.CLUSTER_TILE_PX_DEFAULT, range=limits.CLUSTER_TILE_PX_RANGE,
+        doc="screen tile size of the grid, px"),
+    Opt("slices", int, limits.CLUSTER_SLICES_DEFAULT, range=(0, limits.CLUSTER_SLICES_MAX),
+        doc="exponential depth slices after the near slice (0: 2D tiles)"),
+    Opt("near_split", float, None, nullable=True,
+        doc="end of the near slice, m (none: from the scene bounds)"),
+    Opt("far", float, None, nullable=True, doc="far end of the grid, m (none: scene bounds)"),
+)
+OPTIONS = GRID_OPTIONS + Schema(
+    Opt("assign", str, "cpu", choices=("cpu", "gpu"), doc="light assignment on CPU or GPU"),
+    Opt("cap", int, None, nullable=True, doc="most lights per cluster (none: no cap)"),
+)
 
 
 def check_grid_options(name: str, o: dict) -> None:
-    lo, hi = limits.CLUSTER_TILE_PX_RANGE
-    if not lo <= int(o["tile"]) <= hi:
-        raise ValueError(f"{name} tile must be {lo}..{hi} px, got {o['tile']}")
-    if not 0 <= int(o["slices"]) <= limits.CLUSTER_SLICES_MAX:
-        raise ValueError(f"{name} slices must be 0..{limits.CLUSTER_SLICES_MAX}, got {o['slices']}")
+    """Depth range options: positive metres, near_split < far."""
     for k in ("near_split", "far"):
         v = o[k]
-        if v is not None and not (math.isfinite(float(v)) and float(v) > 0):
-            raise ValueError(f"{name} {k} must be a positive number of metres, got {v}")
+        if v is not None and not v > 0:
+            raise OptionError(f"{name} option {k}: expected a positive number of metres, got {v}")
     if o["near_split"] is not None and o["far"] is not None and o["near_split"] >= o["far"]:
-        raise ValueError(f"{name} needs near_split < far")
+        raise OptionError(f"{name} options: need near_split < far")
 
 
-def frame_grid(engine, frame, o: dict) -> tuple[ClusterGrid, ViewParams]:
+def frame_grid(delegate, frame, o: dict) -> tuple[ClusterGrid, ViewParams]:
     """This frame's grid: options, else the automatic depth range."""
     vp = ViewParams.from_setup(frame.view)
     w, h = frame.buffers.size if frame.buffers.size[0] else (vp.width, vp.height)
     ns, far = o["near_split"], o["far"]
     if ns is None or far is None:
-        a_ns, a_far = auto_depth_range(vp, getattr(engine.delegate, "scene_bounds", None))
+        a_ns, a_far = auto_depth_range(vp, getattr(delegate, "scene_bounds", None))
         far = float(far) if far is not None else max(a_far, (ns or 0.0) * 2.0)
         ns = float(ns) if ns is not None else min(a_ns, 0.5 * far)
     grid = ClusterGrid(w, h, int(o["tile"]), int(o["slices"]), float(ns), float(far))
     return grid, vp
 
 
-def fov_lights(engine) -> tuple[np.ndarray, np.ndarray]:
+def fov_lights(delegate, frame) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) positions and (n,) ranges of the FoV lights, in ``lights[]`` order."""
-    d = engine.delegate
-    t, rows = d.light_table, d.fov_rows
+    t, rows = delegate.light_table, frame.get(InViewLights).rows
     return (
         np.asarray(t.position[rows], dtype=np.float64),
         np.asarray(t.range[rows], dtype=np.float64),
@@ -98,23 +98,15 @@ def grid_uniforms(prog, grid: ClusterGrid) -> None:
 
 class ClusteredLighting(LightingMethod):
     name = "clustered"
+    options = OPTIONS
 
-    def __init__(self, engine, **options) -> None:
-        unknown = set(options) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown clustered option(s): {', '.join(sorted(unknown))}")
-        o = {**DEFAULTS, **options}
-        check_grid_options("clustered", o)
-        if o["assign"] not in ("cpu", "gpu"):
-            raise ValueError(f"clustered assign must be 'cpu' or 'gpu', got {o['assign']!r}")
-        try:
-            o["cap"] = parse_cap(o["cap"])
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"clustered cap must be a positive integer or none, got {o['cap']!r}"
-            ) from None
-        super().__init__(engine, **o)
-        self.o = o
+    @classmethod
+    def check_options(cls, o: dict) -> None:
+        check_grid_options(cls.name, o)
+        o["cap"] = parse_cap(o["cap"])
+
+    def __init__(self, delegate, warn=None, **options) -> None:
+        super().__init__(delegate, warn, **options)
         self.pool: SSBOPool | None = None
         self.grid: ClusterGrid | None = None
         self.lists = None
@@ -122,18 +114,18 @@ class ClusteredLighting(LightingMethod):
     def prepare(self, frame) -> None:
         if frame.light_count == 0:
             return
-        self.grid, vp = frame_grid(self.engine, frame, self.o)
+        self.grid, vp = frame_grid(self.delegate, frame, self.o)
         self.lists = None
         if self.o["assign"] != "cpu":
             return
-        pos, rng = fov_lights(self.engine)
+        pos, rng = fov_lights(self.delegate, frame)
         bins = bin_lights(self.grid, vp, pos, rng)
         C = self.grid.count
         cap = self.o["cap"]
         if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
             budget = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
             cap = budget if cap is None else min(cap, budget)
-            warn(self.engine, f"clustered: {len(bins.cell)} light-cluster pairs exceed "
+            self.warn(f"clustered: {len(bins.cell)} light-cluster pairs exceed "
                  f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
         self.lists = cell_lists(C, bins.cell, bins.light, cap)
 
@@ -182,7 +174,7 @@ class ClusteredLighting(LightingMethod):
         want = self.o["cap"] if self.o["cap"] is not None else n
         stride = min(want, max(1, limits.GRID_MAX_LIST_ENTRIES // C))
         if stride < want:
-            warn(self.engine, f"clustered: {C} clusters x {want} lights exceed "
+            self.warn(f"clustered: {C} clusters x {want} lights exceed "
                  f"{limits.GRID_MAX_LIST_ENTRIES} list entries; lists capped at {stride}")
         headers = self.pool.get("headers", C * 8)
         lists = self.pool.get("lists", C * stride * 4)
@@ -193,7 +185,7 @@ class ClusteredLighting(LightingMethod):
             cs = shader_library(ctx).compute(
                 "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            self.engine.delegate.light_ssbo.bind_to_storage_buffer(0)
+            frame.get(LightBuffer).ssbo.bind_to_storage_buffer(0)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)

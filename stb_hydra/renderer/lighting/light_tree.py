@@ -28,7 +28,7 @@ import numpy as np
 
 from ... import limits
 from .base import LightingMethod, program
-from .clustered import GRID_DEFAULTS, check_grid_options, fov_lights, frame_grid, grid_uniforms
+from .clustered import GRID_OPTIONS, check_grid_options, fov_lights, frame_grid, grid_uniforms
 from .light_tree_build import (
     HEURISTIC_MODES,
     bin_lights,
@@ -36,28 +36,27 @@ from .light_tree_build import (
     cell_lists,
     choose_trees,
 )
-from .tiled import BIND_EXTRA, BIND_HEADERS, BIND_LISTS, SSBOPool, shade_direct, warn
+from .options import Opt, Schema
+from .tiled import BIND_EXTRA, BIND_HEADERS, BIND_LISTS, SSBOPool, shade_direct
 
-DEFAULTS = {**GRID_DEFAULTS, "leaf": limits.LIGHTTREE_LEAF_LIGHTS_DEFAULT, "mode": "hybrid"}
+OPTIONS = GRID_OPTIONS + Schema(
+    Opt("leaf", int, limits.LIGHTTREE_LEAF_LIGHTS_DEFAULT,
+        range=(1, limits.LIGHTTREE_MAX_NODE_LIGHTS), doc="lights per tree leaf"),
+    Opt("mode", str, "hybrid", choices=tuple(HEURISTIC_MODES),
+        doc="hybrid (Listing 2), tree in every cell, or list only"),
+)
 
 
 class LightTreeLighting(LightingMethod):
     name = "lighttree"
+    options = OPTIONS
 
-    def __init__(self, engine, **options) -> None:
-        unknown = set(options) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown lighttree option(s): {', '.join(sorted(unknown))}")
-        o = {**DEFAULTS, **options}
-        check_grid_options("lighttree", o)
-        if not 1 <= int(o["leaf"]) <= limits.LIGHTTREE_MAX_NODE_LIGHTS:
-            raise ValueError(
-                f"lighttree leaf must be 1..{limits.LIGHTTREE_MAX_NODE_LIGHTS}, got {o['leaf']}"
-            )
-        if o["mode"] not in HEURISTIC_MODES:
-            raise ValueError(f"lighttree mode must be one of {', '.join(HEURISTIC_MODES)}")
-        super().__init__(engine, **o)
-        self.o = o
+    @classmethod
+    def check_options(cls, o: dict) -> None:
+        check_grid_options(cls.name, o)
+
+    def __init__(self, delegate, warn=None, **options) -> None:
+        super().__init__(delegate, warn, **options)
         self.pool: SSBOPool | None = None
         self.grid = None
         self.trees = None
@@ -66,9 +65,9 @@ class LightTreeLighting(LightingMethod):
         self.trees = None
         if frame.light_count == 0:
             return
-        self.grid, vp = frame_grid(self.engine, frame, self.o)
+        self.grid, vp = frame_grid(self.delegate, frame, self.o)
         grid = self.grid
-        pos, rng = fov_lights(self.engine)
+        pos, rng = fov_lights(self.delegate, frame)
         # 1. global sort by view depth (the light centre's)
         depth = -vp.to_view(pos)[:, 2]
         order = np.argsort(depth, kind="stable")
@@ -78,7 +77,7 @@ class LightTreeLighting(LightingMethod):
         cap = None
         if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
             cap = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
-            warn(self.engine, f"lighttree: {len(bins.cell)} light-cell pairs exceed "
+            self.warn(f"lighttree: {len(bins.cell)} light-cell pairs exceed "
                  f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
         lists = cell_lists(C, bins.cell, bins.light, cap)
         lo, hi = bins.depth_lo[lists.light], bins.depth_hi[lists.light]

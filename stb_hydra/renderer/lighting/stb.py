@@ -40,8 +40,13 @@ import moderngl
 import numpy as np
 
 from ... import limits
+from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform
+from ..graph import DERIVED, Rec, Tex
+from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
+from ..tasks.base import Pass
 from .base import LightingMethod, program
+from .options import Opt, OptionError, Schema
 
 #: Big-tile target functions: the talk's central segment, uniform (comparison).
 TARGET_MODES = {"segment": 0, "uniform": 1}
@@ -49,19 +54,27 @@ TARGET_MODES = {"segment": 0, "uniform": 1}
 #: Slot block (columns, rows) per big tile for each allowed K.
 SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
 
-DEFAULTS = {
-    "K": limits.BIG_TILE_SLOTS_DEFAULT,
-    "N": 1,
-    "big_tile": limits.BIG_TILE_PX,
-    "small_tile": limits.SMALL_TILE_PX,
-    "eps": 0.1,
-    "weight_cap": 8.0,
-    "interleave": True,
-    "stochastic_bilinear": True,
-    "target": "segment",
-    "pdf_floor": 0.25,
-    "shadow_res": "quad",
-}
+OPTIONS = Schema(
+    Opt("K", int, limits.BIG_TILE_SLOTS_DEFAULT, choices=tuple(SLOT_BLOCKS),
+        doc="reservoir slots per big tile"),
+    Opt("N", int, 1, range=(1, limits.SMALL_TILE_SAMPLES_MAX), doc="samples per small tile"),
+    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(32, 64, 128, 256), doc="big tile, px"),
+    Opt("small_tile", int, limits.SMALL_TILE_PX, choices=(4, 8, 16, 32),
+        doc="small tile, px (16 with interleaving)"),
+    Opt("eps", float, 0.1, doc="small-tile target distance floor, m"),
+    Opt("weight_cap", float, 8.0, nullable=True,
+        doc="sample weight cap relative to the tile mean (none or <= 0: unbiased)"),
+    Opt("interleave", bool, True, doc="interleaved 4-tile footprints (the talk's)"),
+    Opt("stochastic_bilinear", bool, True, doc="stochastic bilinear big-tile choice"),
+    Opt("target", str, "segment", choices=tuple(TARGET_MODES), doc="big-tile target function"),
+    Opt("pdf_floor", float, 0.25, doc="defensive mixture weight of the small-tile target"),
+    Opt("shadow_res", str, "quad", choices=("quad", "pixel"), doc="deferred shadow terms per"
+        " 2x2 quad (the talk's) or per pixel"),
+)
+#: Debug views (``shaders/debug_<name>.frag``).
+DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
+#: Textures a debug view samples (uniform -> render buffer).
+DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_terms": "stb_terms"}
 
 
 def load_quad_patterns() -> dict:
@@ -71,34 +84,33 @@ def load_quad_patterns() -> dict:
 
 class StbLighting(LightingMethod):
     name = "stb"
+    options = OPTIONS
+    debug_aovs = DEBUG_AOVS
 
-    def __init__(self, engine, **options) -> None:
-        unknown = set(options) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown stb option(s): {', '.join(sorted(unknown))}")
-        o = {**DEFAULTS, **options}
-        if o["K"] not in SLOT_BLOCKS:
-            raise ValueError(f"stb K must be one of {sorted(SLOT_BLOCKS)}, got {o['K']}")
-        if not 1 <= int(o["N"]) <= limits.SMALL_TILE_SAMPLES_MAX:
-            raise ValueError(f"stb N must be 1..{limits.SMALL_TILE_SAMPLES_MAX}, got {o['N']}")
-        bt = int(o["big_tile"])
-        if bt not in (32, 64, 128, 256):
-            raise ValueError(f"stb big_tile must be 32, 64, 128 or 256 px, got {bt}")
-        st = int(o["small_tile"])
-        if o["interleave"] and st != 16:
-            raise ValueError("stb interleaving needs 16 px small tiles (32 px footprints)")
-        if st not in (4, 8, 16, 32) or st > bt:
-            raise ValueError(f"stb small_tile must be 4..32 px and <= big_tile, got {st}")
-        if o["shadow_res"] not in ("quad", "pixel"):
-            raise ValueError("stb shadow_res must be 'quad' or 'pixel'")
-        if o["target"] not in TARGET_MODES:
-            raise ValueError(f"stb target must be one of {', '.join(TARGET_MODES)}")
+    @classmethod
+    def check_options(cls, o: dict) -> None:
+        if o["interleave"] and o["small_tile"] != 16:
+            raise OptionError("stb option small_tile: interleaving needs 16 px small tiles")
+        if o["small_tile"] > o["big_tile"]:
+            raise OptionError("stb option small_tile: must be <= big_tile")
         cap = o["weight_cap"]
-        o["weight_cap"] = 0.0 if cap is None or cap is False or cap <= 0 else float(cap)
-        super().__init__(engine, **o)
-        self.o = o
+        o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
+
+    def __init__(self, delegate, warn=None, **options) -> None:
+        super().__init__(delegate, warn, **options)
+        self.hiz_level = int(math.log2(int(self.o["big_tile"])))
         self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.pattern_offset = (0, 0)
+
+    def internal(self) -> tuple[Tex, ...]:
+        return (
+            Tex("stb_bigtile", "r32ui", DERIVED),
+            Tex("stb_smalltile", "rgba32ui", DERIVED),
+            Tex("stb_terms", "rgba8", DERIVED),
+        )
+
+    def debug_passes(self) -> list:
+        return [StbDebugPass(self, aov) for aov in DEBUG_AOVS]
 
     # -- resources --
     def _lut_textures(self, ctx: moderngl.Context):
@@ -139,8 +151,6 @@ class StbLighting(LightingMethod):
 
     def prepare(self, frame) -> None:
         o = self.o
-        hiz = self.engine.task("hiz")
-        hiz.levels = max(hiz.levels, int(math.log2(int(o["big_tile"]))))
         rng = np.random.default_rng(frame.seed)
         if o["interleave"]:
             self.pattern_offset = (2 * int(rng.integers(0, 16)), 2 * int(rng.integers(0, 16)))
@@ -184,8 +194,7 @@ class StbLighting(LightingMethod):
         g = self.grid(w, h)
         defines = self.defines(frame)
         lut_inv, lut_fwd = self._lut_textures(ctx)
-        level = int(math.log2(int(self.o["big_tile"])))
-        hiz = bufs.textures[f"hiz{level}"]
+        hiz = bufs.textures[f"hiz{self.hiz_level}"]
 
         # 1. big tiles
         big = bufs.texture("stb_bigtile", 1, "u4", size=g["bigtile"])
@@ -234,44 +243,57 @@ class StbLighting(LightingMethod):
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
 
     def _pass(self, frame, prog, target: str, size) -> None:
-        ctx = frame.ctx
         with frame.timings_scope(target):
             fbo = frame.buffers.framebuffer("fb_" + target, [target])
-            fbo.use()
-            ctx.viewport = (0, 0, *size)
-            ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-            self.engine.fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
-
-    # -- debug AOVs (``stb render --aov bigtile,smalltile,shadowterms``) --
-    #: Debug views this method draws (``shaders/debug_<name>.frag``).
-    DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
-
-    def debug_pass(self, frame, aov: str, target: str) -> bool:
-        """Draw debug view ``aov`` of this frame's STB buffers into buffer ``target``
-        (frame size, RGBA). False (nothing drawn) when the frame ran no STB passes."""
-        if aov not in self.DEBUG_AOVS:
-            raise ValueError(f"unknown stb debug AOV '{aov}' (choose from {self.DEBUG_AOVS})")
-        tex = frame.buffers.textures
-        inputs = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile"}
-        inputs["u_terms"] = "stb_terms"
-        if frame.light_count == 0 or any(n not in tex for n in inputs.values()):
-            return False
-        lut_inv, lut_fwd = self._lut_textures(frame.ctx)
-        prog = program(frame, f"debug_{aov}.frag", self.defines(frame))
-        self._common_uniforms(frame, prog)
-        unit = 0
-        for uniform, name in inputs.items():
-            unit = self._bind(frame, prog, unit, uniform, tex[name])
-        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
-        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
-        self.fullscreen_pass(frame, prog, target)
-        return True
+            draw_fullscreen(frame.ctx, prog, fbo, size)
 
     def release(self) -> None:
         if self._luts is not None:
             for t in self._luts:
                 t.release()
             self._luts = None
+
+
+class StbDebugPass(Pass):
+    """Draws one STB debug view (``shaders/debug_<aov>.frag``) of this frame's STB
+    buffers into ``debug_<aov>`` (RGBA8, frame size); black when the frame ran no
+    STB passes (no local lights in view)."""
+
+    only_final = True
+
+    def __init__(self, method: StbLighting, aov: str) -> None:
+        super().__init__(method.delegate)
+        self.method = method
+        self.aov = aov
+        self.name = f"debug_{aov}"  # type: ignore[misc]
+
+    def io(self):
+        reads = (
+            *(Tex(n) for n in DEBUG_INPUTS.values()),
+            Rec(InViewLights),
+            Rec(DistantLights),
+            Rec(LightBuffer),
+            Rec(FrameBlock),
+        )
+        return reads, (Tex(self.name, "rgba8"),)
+
+    def execute(self, frame) -> None:
+        m = self.method
+        target = self.name
+        fbo = frame.buffers.framebuffer("fb_" + target, [target])
+        if frame.light_count == 0:
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            return
+        tex = frame.buffers.textures
+        lut_inv, lut_fwd = m._lut_textures(frame.ctx)
+        prog = program(frame, f"debug_{self.aov}.frag", m.defines(frame))
+        m._common_uniforms(frame, prog)
+        unit = 0
+        for uniform, name in DEBUG_INPUTS.items():
+            unit = m._bind(frame, prog, unit, uniform, tex[name])
+        unit = m._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+        m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
 
 
 def decode_samples(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

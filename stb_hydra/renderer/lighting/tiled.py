@@ -27,14 +27,20 @@ import numpy as np
 
 from ... import limits
 from ..gl import set_uniform, shader_library
+from ..records import LightBuffer
 from .base import LightingMethod, program
+from .options import Opt, Schema
 
 #: First texture unit for the baselines' own textures (the shared ones stay below).
 FIRST_UNIT = 10
 #: SSBO bindings (0 = lights, 1 = shadow maps are shared).
 BIND_HEADERS, BIND_LISTS, BIND_EXTRA = 2, 3, 4
 
-DEFAULTS = {"tile_cap": limits.TILED_CAP_DEFAULT, "stats": True}
+OPTIONS = Schema(
+    Opt("tile_cap", int, limits.TILED_CAP_DEFAULT, nullable=True,
+        doc="most lights per 16 px tile list (none or <= 0: no cap)"),
+    Opt("stats", bool, True, doc="read the dropped-light counters back each frame"),
+)
 
 
 def parse_cap(value) -> int | None:
@@ -82,12 +88,6 @@ class SSBOPool:
         self.buffers.clear()
 
 
-def warn(engine, msg: str) -> None:
-    w = getattr(engine, "_warn_once", None)
-    if w is not None:
-        w(msg)
-
-
 def shade_direct(method: LightingMethod, frame) -> None:
     """No local lights in view: sun + ambient only (the reference's light-less path)."""
     prog = program(frame, "lighting_direct.frag", method.scene_defines(frame))
@@ -116,21 +116,16 @@ def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
 
 class TiledLighting(LightingMethod):
     name = "tiled"
+    options = OPTIONS
+    hiz_level = int(math.log2(limits.TILED_TILE_PX))
 
-    def __init__(self, engine, **options) -> None:
-        unknown = set(options) - set(DEFAULTS)
-        if unknown:
-            raise ValueError(f"unknown tiled option(s): {', '.join(sorted(unknown))}")
-        o = {**DEFAULTS, **options}
-        try:
-            o["tile_cap"] = parse_cap(o["tile_cap"])
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"tiled tile_cap must be a positive integer or none, got {o['tile_cap']!r}"
-            ) from None
-        super().__init__(engine, **o)
-        self.o = o
-        self.cap: int | None = o["tile_cap"]
+    @classmethod
+    def check_options(cls, o: dict) -> None:
+        o["tile_cap"] = parse_cap(o["tile_cap"])
+
+    def __init__(self, delegate, warn=None, **options) -> None:
+        super().__init__(delegate, warn, **options)
+        self.cap: int | None = self.o["tile_cap"]
         self.tile = limits.TILED_TILE_PX
         self.pool: SSBOPool | None = None
         self.tiles = (0, 0)
@@ -138,10 +133,6 @@ class TiledLighting(LightingMethod):
 
     def grid(self, width: int, height: int) -> tuple[int, int]:
         return (math.ceil(width / self.tile), math.ceil(height / self.tile))
-
-    def prepare(self, frame) -> None:
-        hiz = self.engine.task("hiz")
-        hiz.levels = max(hiz.levels, int(math.log2(self.tile)))
 
     def execute(self, frame) -> None:
         w, h = frame.buffers.size
@@ -158,8 +149,7 @@ class TiledLighting(LightingMethod):
         want = self.cap if self.cap is not None else n
         stride = min(want, max(1, limits.GRID_MAX_LIST_ENTRIES // tiles))
         if stride < want:
-            warn(
-                self.engine,
+            self.warn(
                 f"tiled: {tiles} tiles x {want} lights exceed {limits.GRID_MAX_LIST_ENTRIES} "
                 f"list entries; lists capped at {stride}",
             )
@@ -173,7 +163,7 @@ class TiledLighting(LightingMethod):
             cs = shader_library(ctx).compute(
                 "tiled_cull.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            self.engine.delegate.light_ssbo.bind_to_storage_buffer(0)
+            frame.get(LightBuffer).ssbo.bind_to_storage_buffer(0)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)

@@ -16,30 +16,33 @@ Debug AOVs (``stb render --aov ...``), each an (h, w[, 3]) float32 array, top ro
   a log2 scale of matplotlib's ``turbo`` (blue = 1 ... dark red >= 256); the
   legend image comes from :func:`write_lightcount_legend`.
 
-The three STB views run ``StbLighting.debug_pass`` (shaders ``debug_*.frag``);
-the light count runs ``debug_lightcount.frag`` over the FoV light buffer. The
-same light hashes colour ``bigtile`` and ``smalltile`` (:func:`hash_colors` is
-the CPU twin of the shaders' ``light_color``).
+The STB views are drawn by ``lighting.stb.StbDebugPass`` (shaders ``debug_*.frag``),
+the light count by :class:`LightCountTask` (``debug_lightcount.frag`` over the FoV
+light buffer); those passes join the graph only when their AOV is requested.
+Colouring and file writing live in ``stb_hydra/io/debug_views.py``.
 """
 
 from __future__ import annotations
 
-import functools
-import os
-from collections.abc import Iterable, Mapping
-from pathlib import Path
+from collections.abc import Callable, Iterable
 from typing import Any
 
-import moderngl
 import numpy as np
 
-from .base import Task
+from ..frame import FrameContext
+from ..graph import Imported, Rec, Resource, Tex
+from ..lighting import METHODS, debug_aov_names
+from ..lighting.stb import StbLighting
+from ..records import InViewLights, LightBuffer, SceneColor
+from .base import Pass
+from .color_correction import COLOR_SOURCES
 
-STB_DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
-DEBUG_AOVS = (*STB_DEBUG_AOVS, "lightcount")
+#: The STB method's debug views.
+STB_DEBUG_AOVS = StbLighting.debug_aovs
+#: Debug AOVs: every method's declared views, then the light-count heat map (all methods).
+DEBUG_AOVS = (*debug_aov_names(), "lightcount")
+#: Every AOV name (``stb render --aov``), the one list.
 AOVS = ("color", "depth", "normal", "albedo", "display", *DEBUG_AOVS)
-#: Light count at the top of the heat map's log2 scale (brighter counts saturate).
-LIGHTCOUNT_SCALE_MAX = 256
 
 
 def _read(tex, comps: int, dtype) -> np.ndarray:
@@ -59,136 +62,53 @@ def oct_decode(e: np.ndarray) -> np.ndarray:
 # --- which AOVs a method supports ---------------------------------------------------------
 
 
-def supports_stb_debug(method: Any) -> bool:
-    """True for a lighting method (instance or class) that draws the STB debug views."""
-    return callable(getattr(method, "debug_pass", None))
-
-
 def check_debug_aovs(names: Iterable[str], lighting: str, method: Any = None) -> None:
-    """Raise ``ValueError`` (one line) when STB debug AOVs are asked of another method.
-
-    ``method``: the method instance or class (default: looked up from ``lighting``).
-    """
-    stb = [n for n in STB_DEBUG_AOVS if n in set(names)]
-    if not stb:
-        return
+    """Raise ``ValueError`` (one line) for unknown AOV names and for a method's debug
+    AOVs asked of another method. ``method``: the method instance or class
+    (default: looked up from ``lighting``)."""
+    names = list(dict.fromkeys(names))
+    unknown = [n for n in names if n not in AOVS]
+    if unknown:
+        raise ValueError(f"unknown AOV(s) {','.join(unknown)} (choose from {', '.join(AOVS)})")
     if method is None:
         from ..lighting import method_class
 
         method = method_class(lighting)
-    if not supports_stb_debug(method):
+    offered = set(getattr(method, "debug_aovs", ()))
+    missing = [n for n in names if n in debug_aov_names() and n not in offered]
+    if missing:
+        owners = [m for m, cls in METHODS.items() if set(missing) <= set(cls.debug_aovs)]
+        need = " or ".join(f"--lighting {m}" for m in owners) or "another method"
         raise ValueError(
-            f"AOV(s) {','.join(stb)} need --lighting stb (this render uses '{lighting}')"
+            f"AOV(s) {','.join(missing)} need {need} (this render uses '{lighting}')"
         )
-
-
-# --- colouring ---------------------------------------------------------------------------
-
-
-def hash_colors(index: np.ndarray) -> np.ndarray:
-    """(..., 3) float32 colours of light indices: CPU twin of ``light_color()`` in
-    ``shaders/debug_bigtile.frag`` / ``debug_smalltile.frag``."""
-    with np.errstate(over="ignore"):
-        h = np.asarray(index, dtype=np.uint32) * np.uint32(747796405) + np.uint32(2891336453)
-        h = ((h >> ((h >> np.uint32(28)) + np.uint32(4))) ^ h) * np.uint32(277803737)
-        h = (h >> np.uint32(22)) ^ h
-    hue = (h & np.uint32(1023)).astype(np.float32) / np.float32(1024.0)
-    off = np.array([0.0, 2.0 / 3.0, 1.0 / 3.0], dtype=np.float32)
-    c = np.clip(np.abs(np.modf(hue[..., None] + off)[0] * 6.0 - 3.0) - 1.0, 0.0, 1.0)
-    v = 0.55 + 0.45 * ((h >> np.uint32(10)) & np.uint32(255)).astype(np.float32) / 255.0
-    return ((1.0 - 0.85) + 0.85 * c) * v[..., None]
-
-
-@functools.cache
-def _turbo_lut() -> np.ndarray:
-    import matplotlib
-
-    return np.asarray(matplotlib.colormaps["turbo"](np.linspace(0.0, 1.0, 256))[:, :3], np.float32)
-
-
-def lightcount_scale(counts: np.ndarray) -> np.ndarray:
-    """Counts -> position on the heat map's colour scale [0, 1] (log2, 1 -> 0)."""
-    c = np.maximum(np.asarray(counts, dtype=np.float64), 1.0)
-    return np.clip(np.log2(c) / np.log2(LIGHTCOUNT_SCALE_MAX), 0.0, 1.0)
-
-
-def lightcount_heatmap(counts: np.ndarray) -> np.ndarray:
-    """(h, w) light counts -> (h, w, 3) display-referred heat map (0 = black)."""
-    counts = np.asarray(counts)
-    idx = np.rint(lightcount_scale(counts) * 255.0).astype(np.intp)
-    rgb = _turbo_lut()[idx]
-    rgb[counts < 0.5] = 0.0
-    return rgb
-
-
-def write_lightcount_legend(path: str | os.PathLike[str]) -> Path:
-    """Write the light-count heat map's colour bar (PNG, for the docs)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    ticks = [0, *(2**k for k in range(int(np.log2(LIGHTCOUNT_SCALE_MAX)) + 1))]
-    counts = np.concatenate([[0.0], np.exp2(np.linspace(0, np.log2(LIGHTCOUNT_SCALE_MAX), 511))])
-    bar = lightcount_heatmap(counts[None, :])
-    fig, ax = plt.subplots(figsize=(7.0, 1.1))
-    ax.imshow(np.repeat(bar, 24, axis=0), aspect="auto", extent=(-1.0 / 511, 1.0, 0, 1))
-    ax.set_xticks([float(lightcount_scale(np.array(t))) if t else -0.5 / 511 for t in ticks])
-    ax.set_xticklabels([str(t) if t < LIGHTCOUNT_SCALE_MAX else f">={t}" for t in ticks])
-    ax.set_yticks([])
-    ax.set_title("lightcount AOV: FoV lights whose range covers the pixel (0 = black)", fontsize=9)
-    fig.tight_layout()
-    out = Path(os.fspath(path))
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
-
-
-def debug_aov_image(name: str, pixels: np.ndarray) -> np.ndarray:
-    """A debug AOV as a display-referred (h, w, 3) image in [0, 1]."""
-    if name == "lightcount":
-        return lightcount_heatmap(pixels)
-    return np.clip(np.asarray(pixels, dtype=np.float32), 0.0, 1.0)
-
-
-def write_debug_aov(
-    path: str | os.PathLike[str],
-    name: str,
-    pixels: np.ndarray,
-    *,
-    metadata: Mapping[str, Any] | None = None,
-) -> list[Path]:
-    """Write debug AOV ``name`` next to colour image ``path``: ``<stem>.<name>.png``
-    (8-bit, display-referred) and for ``lightcount`` also ``<stem>.lightcount.exr``
-    (float counts, channel Y). Returns the written paths."""
-    from ...io.images import aov_path, write_image
-
-    meta = {"stb:aov": name, **(metadata or {})}
-    exr = aov_path(path, name)
-    png = exr.with_suffix(".png")
-    if name == "lightcount":
-        meta["stb:lightcountScaleMax"] = LIGHTCOUNT_SCALE_MAX
-    out = [write_image(png, debug_aov_image(name, pixels), metadata=meta, display_referred=True)]
-    if name == "lightcount":
-        counts = np.asarray(pixels, dtype=np.float32)
-        out.append(
-            write_image(
-                exr, counts, metadata=meta, pixel_type="float", channel_names=("Y",),
-                colorspace="data",
-            )
-        )
-    return out
 
 
 # --- the task ----------------------------------------------------------------------------
 
+#: What each non-debug AOV reads.
+AOV_READS: dict[str, tuple[Resource, ...]] = {
+    "color": (Rec(SceneColor), *COLOR_SOURCES),
+    "display": (Tex("display", "rgba8"),),
+    "depth": (Tex("g_depth", "r32f"),),
+    "normal": (Tex("g_normal", "rg16f"), Tex("g_depth", "r32f")),
+    "albedo": (Tex("g_base_rough", "rgba16f"),),
+}
 
-class AovOutputTask(Task):
-    only_final = True
+
+class AovOutputTask(Pass):
+    """Reads the requested AOVs back to host memory (``results``). Its reads follow
+    ``requested``, so the passes drawing debug views join the graph only when one of
+    their AOVs is requested (changing ``requested`` rebuilds the graph)."""
+
     name = "aov_output"
+    only_final = True
+    side_effect = True
 
-    def __init__(self, engine) -> None:
-        super().__init__(engine)
+    def __init__(self, delegate, method: Any = None, on_change: Callable[[], None] | None = None):
+        super().__init__(delegate)
+        self.method = method
+        self.on_change = on_change
         self._requested: set[str] = {"color"}
         self.results: dict[str, np.ndarray] = {}
 
@@ -199,19 +119,30 @@ class AovOutputTask(Task):
     @requested.setter
     def requested(self, names: Iterable[str]) -> None:
         names = set(names)
-        method = getattr(self.engine, "method", None)
-        if method is not None:
-            check_debug_aovs(names, getattr(method, "name", "?"), method)
-        self._requested = names
+        if self.method is not None:
+            check_debug_aovs(names, getattr(self.method, "name", "?"), self.method)
+        if names != self._requested:
+            self._requested = names
+            if self.on_change is not None:
+                self.on_change()
 
-    def execute(self, frame) -> None:
+    def io(self):
+        reads: list[Resource] = []
+        for name in sorted(self._requested):
+            if name in AOV_READS:
+                reads += AOV_READS[name]
+            elif name in DEBUG_AOVS:
+                reads.append(Tex(f"debug_{name}"))
+        return tuple(dict.fromkeys(reads)), ()
+
+    def execute(self, frame: FrameContext) -> None:
         bufs = frame.buffers
         out: dict[str, np.ndarray] = {}
         if "color" in self.requested:
-            src = bufs.textures[frame.color_buffer]
+            src = bufs.textures[frame.get(SceneColor).buffer]
             dt = np.float16 if src.dtype == "f2" else np.float32
             out["color"] = _read(src, 4, dt).astype(np.float32)
-        if "display" in self.requested and "display" in bufs.textures:
+        if "display" in self.requested:
             out["display"] = _read(bufs.textures["display"], 4, np.uint8)
         if "depth" in self.requested:
             out["depth"] = _read(bufs.textures["g_depth"], 1, np.float32)[..., 0]
@@ -225,38 +156,39 @@ class AovOutputTask(Task):
             out["albedo"] = _read(bufs.textures["g_base_rough"], 4, np.float16)[..., :3].astype(
                 np.float32
             )
-        for name in STB_DEBUG_AOVS:
-            if name in self.requested:
-                out[name] = self._stb_debug(frame, name)
-        if "lightcount" in self.requested:
-            out["lightcount"] = self._lightcount(frame)
+        for name in DEBUG_AOVS:
+            if name not in self.requested:
+                continue
+            tex = bufs.textures[f"debug_{name}"]
+            if name == "lightcount":
+                out[name] = _read(tex, 1, np.float32)[..., 0].copy()
+            else:
+                out[name] = _read(tex, 4, np.uint8)[..., :3].astype(np.float32) / np.float32(255.0)
         self.results = out
 
-    def _stb_debug(self, frame, name: str) -> np.ndarray:
-        w, h = frame.buffers.size
-        target = "debug_" + name
-        tex = frame.buffers.texture(target, 4, "f1")
-        if not self.engine.method.debug_pass(frame, name, target):
-            return np.zeros((h, w, 3), np.float32)  # no local lights: no STB passes ran
-        return _read(tex, 4, np.uint8)[..., :3].astype(np.float32) / np.float32(255.0)
 
-    def _lightcount(self, frame) -> np.ndarray:
+class LightCountTask(Pass):
+    """``debug_lightcount``: per pixel, the in-view lights whose range sphere holds
+    its world position (``debug_lightcount.frag``, R32F; 0 on background)."""
+
+    name = "debug_lightcount"
+    only_final = True
+    reads = (Tex("g_depth", "r32f"), Rec(InViewLights), Rec(LightBuffer), Imported("light_table"))
+    writes = (Tex("debug_lightcount", "r32f"),)
+
+    def execute(self, frame: FrameContext) -> None:
+        from ..fullscreen import draw_fullscreen
         from ..gl import shader_library
 
         bufs = frame.buffers
-        w, h = bufs.size
-        ssbo = self.engine.delegate.light_ssbo
+        fbo = bufs.framebuffer("fb_debug_lightcount", ["debug_lightcount"])
+        ssbo = frame.get(LightBuffer).ssbo
         if frame.light_count == 0 or ssbo is None:
-            return np.zeros((h, w), np.float32)
-        tex = bufs.texture("debug_lightcount", 1, "f4")
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            return
         prog = shader_library(frame.ctx).program("fullscreen.vert", "debug_lightcount.frag")
         bufs.textures["g_depth"].use(0)
         if "g_depth" in prog:
             prog["g_depth"].value = 0
         ssbo.bind_to_storage_buffer(0)
-        fbo = bufs.framebuffer("fb_debug_lightcount", ["debug_lightcount"])
-        fbo.use()
-        frame.ctx.viewport = (0, 0, w, h)
-        frame.ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-        self.engine.fullscreen(prog).render(moderngl.TRIANGLES, vertices=3)
-        return _read(tex, 1, np.float32)[..., 0].copy()
+        draw_fullscreen(frame.ctx, prog, fbo, bufs.size)

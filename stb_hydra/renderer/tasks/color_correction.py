@@ -3,24 +3,34 @@
 from __future__ import annotations
 
 from ...color.ocio import ColorCorrectionPass, ColorPipeline
-from .base import Task
+from ..frame import FrameContext
+from ..graph import Imported, Rec, Tex
+from ..records import SceneColor
+from .base import Pass
+from .taa import ACCUM
+
+#: Buffers that may hold the frame's scene-linear colour (``SceneColor.buffer``).
+COLOR_SOURCES = (Tex("lighting"), *(Tex(n, optional=True) for n in ACCUM))
 
 
-class ColorCorrectionTask(Task):
-    only_final = True
+class ColorCorrectionTask(Pass):
     name = "color_correction"
+    only_final = True
+    #: The display image is what a window shows: kept even when no AOV asks for it.
+    side_effect = True
+    reads = (Rec(SceneColor), *COLOR_SOURCES, Imported("color_pipeline"))
+    writes = (Tex("display", "rgba8"),)
 
-    def __init__(self, engine, pipeline: ColorPipeline) -> None:
-        super().__init__(engine)
+    def __init__(self, delegate, pipeline: ColorPipeline) -> None:
+        super().__init__(delegate)
         self.pipeline = pipeline
         self._pass: ColorCorrectionPass | None = None
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         if self._pass is None:
             self._pass = ColorCorrectionPass(frame.ctx, self.pipeline)
-        src = frame.buffers.textures[frame.color_buffer]
-        dst = frame.buffers.texture("display", 4, "f1")
-        self._pass.run(src, dst)
+        src = frame.buffers.textures[frame.get(SceneColor).buffer]
+        self._pass.run(src, frame.buffers.textures["display"])
 
     def release(self) -> None:
         if self._pass is not None:

@@ -5,39 +5,39 @@ from __future__ import annotations
 
 import moderngl
 
+from ..frame import FrameContext
 from ..gl import set_uniform, shader_library
-from .base import Task
+from ..graph import Imported, Rec, Tex
+from ..records import FrameBlock
+from .base import Pass
 
-#: (name, components, dtype)
+#: The MRT targets, in attachment order (``gbuffer.frag`` outputs).
 GBUFFER_TARGETS = (
-    ("g_depth", 1, "f4"),
-    ("g_normal", 2, "f2"),
-    ("g_base_rough", 4, "f2"),
-    ("g_f0_metal", 4, "f2"),
-    ("g_motion", 2, "f2"),
-    ("g_emission", 4, "f2"),
+    Tex("g_depth", "r32f"),
+    Tex("g_normal", "rg16f"),
+    Tex("g_base_rough", "rgba16f"),
+    Tex("g_f0_metal", "rgba16f"),
+    Tex("g_motion", "rg16f"),
+    Tex("g_emission", "rgba16f"),
 )
 
 
-class GBufferTask(Task):
+class GBufferTask(Pass):
     name = "gbuffer"
+    reads = (Imported("meshes"), Rec(FrameBlock))
+    writes = (*GBUFFER_TARGETS, Tex("g_zbuffer", "depth24"))
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         ctx = frame.ctx
         bufs = frame.buffers
-        for name, comps, dtype in GBUFFER_TARGETS:
-            bufs.texture(name, comps, dtype)
-        zbuf = bufs.textures.get("g_zbuffer")
-        if zbuf is None or zbuf.size != bufs.size:
-            bufs.set_texture("g_zbuffer", ctx.depth_texture(bufs.size))
-        fbo = bufs.framebuffer("gbuffer", [n for n, _, _ in GBUFFER_TARGETS], "g_zbuffer")
+        fbo = bufs.framebuffer("gbuffer", [t.name for t in GBUFFER_TARGETS], "g_zbuffer")
         fbo.use()
         ctx.viewport = (0, 0, *bufs.size)
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         prog = shader_library(ctx).program("gbuffer.vert", "gbuffer.frag")
-        delegate = self.engine.delegate
+        delegate = self.delegate
         for b in delegate.batches:
             m = b.material
             set_uniform(prog, "u_base_color", m.base)

@@ -5,32 +5,38 @@ from __future__ import annotations
 
 import math
 
+from ..frame import FrameContext
 from ..gl import shader_library
-from .base import Task
+from ..graph import Size, Tex
+from .base import Pass
 
 HIZ_LEVELS = 7
 
 
-class HiZTask(Task):
+class HiZTask(Pass):
     name = "hiz"
+    reads = (Tex("g_depth", "r32f"),)
 
-    def __init__(self, engine, levels: int = HIZ_LEVELS) -> None:
-        super().__init__(engine)
+    def __init__(self, delegate, levels: int = HIZ_LEVELS) -> None:
+        super().__init__(delegate)
         self.levels = levels
 
-    def execute(self, frame) -> None:
+    def io(self):
+        levels = range(1, self.levels + 1)
+        writes = tuple(Tex(f"hiz{k}", "rg32f", Size(divisor=2**k)) for k in levels)
+        return self.reads, writes
+
+    def execute(self, frame: FrameContext) -> None:
         ctx = frame.ctx
         bufs = frame.buffers
         cs = shader_library(ctx).compute("hiz_minmax.comp")
-        w, h = bufs.size
         src = bufs.textures["g_depth"]
         for k in range(1, self.levels + 1):
-            size = (max(1, math.ceil(w / 2**k)), max(1, math.ceil(h / 2**k)))
-            dst = bufs.texture(f"hiz{k}", 2, "f4", size=size)
+            dst = bufs.textures[f"hiz{k}"]
             src.use(0)
             cs["u_src"].value = 0
             cs["u_from_depth"].value = 1 if k == 1 else 0
             dst.bind_to_image(0, read=False, write=True)
-            cs.run(math.ceil(size[0] / 8), math.ceil(size[1] / 8), 1)
+            cs.run(math.ceil(dst.size[0] / 8), math.ceil(dst.size[1] / 8), 1)
             ctx.memory_barrier()
             src = dst

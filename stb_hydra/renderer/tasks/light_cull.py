@@ -1,17 +1,31 @@
-"""CPU light culling: influence spheres against the view frustum (vectorised).
-The FoV light buffer is uploaded in the commit phase (``GLRenderDelegate.
-upload_fov_lights``), after the shadow task assigned shadow maps."""
+"""CPU light culling: influence spheres against the view frustum (vectorised) ->
+the frame's ``InViewLights`` (rows in light-buffer order + feature flags)."""
 
 from __future__ import annotations
 
-from .base import Task
+import numpy as np
+
+from ...scene.prims import CONE_CUTOFF_TEST_RAD
+from ..frame import FrameContext
+from ..graph import Imported, Rec
+from ..light_buffer import cull_lights
+from ..records import InViewLights
+from .base import Pass
 
 
-class LightCullTask(Task):
+class LightCullTask(Pass):
     name = "light_cull"
+    reads = (Imported("light_table"),)
+    writes = (Rec(InViewLights),)
 
-    def prepare(self, frame) -> None:
-        d = self.engine.delegate
-        d.cull_fov(frame.view.frustum_planes())
-        frame.light_count = len(d.fov_rows)
-        frame.stats["fov_lights"] = frame.light_count
+    def prepare(self, frame: FrameContext) -> None:
+        t = self.delegate.light_table
+        rows = cull_lights(t, frame.view.frustum_planes())
+        frame.put(
+            InViewLights(
+                rows=rows,
+                has_cones=bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))),
+                has_ies=bool(np.any(t.ies_layer[rows] >= 0)),
+            )
+        )
+        frame.stats["fov_lights"] = len(rows)

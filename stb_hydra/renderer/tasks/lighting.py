@@ -1,23 +1,33 @@
-"""Lighting task: runs the selected lighting method into the 'lighting' buffer."""
+"""Lighting task: runs the selected lighting method into the ``lighting`` buffer
+(RGBA16F, scene-linear) and names it as the frame's ``SceneColor``."""
 
 from __future__ import annotations
 
-from .base import Task
+from ..frame import FrameContext
+from ..graph import Rec, Tex
+from ..lighting.base import LightingMethod
+from ..records import SceneColor
+from .base import Pass
+
+LIGHTING = Tex("lighting", "rgba16f")
 
 
-class LightingTask(Task):
+class LightingTask(Pass):
     name = "lighting"
 
-    def __init__(self, engine, method) -> None:
-        super().__init__(engine)
+    def __init__(self, delegate, method: LightingMethod) -> None:
+        super().__init__(delegate)
         self.method = method
 
-    def prepare(self, frame) -> None:
+    def io(self):
+        return self.method.reads(), (LIGHTING, Rec(SceneColor), *self.method.internal())
+
+    def prepare(self, frame: FrameContext) -> None:
         self.method.prepare(frame)
 
-    def execute(self, frame) -> None:
-        frame.buffers.texture("lighting", 4, "f2")
+    def execute(self, frame: FrameContext) -> None:
         self.method.execute(frame)
+        frame.put(SceneColor("lighting"))
 
     def release(self) -> None:
         self.method.release()

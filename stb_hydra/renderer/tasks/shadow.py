@@ -7,8 +7,11 @@ import moderngl
 import numpy as np
 
 from ..camera import look_at, orthographic
+from ..frame import FrameContext
 from ..gl import set_uniform, shader_library
-from .base import Task
+from ..graph import Imported, Rec
+from ..records import DistantLights, SunShadowMap
+from .base import Pass
 
 
 def _frustum_corners(view, max_dist: float) -> np.ndarray:
@@ -26,19 +29,27 @@ def _frustum_corners(view, max_dist: float) -> np.ndarray:
     return np.array(pts)[:, :3]
 
 
-class SunShadowTask(Task):
-    name = "shadow"
+class SunShadowTask(Pass):
+    """Fits the sun's shadow frustum (prepare: sets the sun's matrix and biases on
+    ``DistantLights``) and renders its depth map (``SunShadowMap``)."""
 
-    def __init__(self, engine) -> None:
-        super().__init__(engine)
+    name = "shadow"
+    reads = (Imported("meshes"), Rec(DistantLights))
+    writes = (Rec(DistantLights), Rec(SunShadowMap))
+
+    def __init__(self, delegate) -> None:
+        super().__init__(delegate)
         self.texture: moderngl.Texture | None = None
         self.fbo: moderngl.Framebuffer | None = None
+        self._light_vp: np.ndarray | None = None
 
-    def prepare(self, frame) -> None:
-        sun = frame.sun
+    def prepare(self, frame: FrameContext) -> None:
+        sun = frame.get(DistantLights).sun
+        rec = SunShadowMap()
+        frame.put(rec)
         if not (sun.enabled and sun.shadow):
             return
-        lo, hi = self.engine.delegate.scene_bounds
+        lo, hi = self.delegate.scene_bounds
         if not np.all(hi > lo):
             sun.shadow = False
             return
@@ -71,13 +82,10 @@ class SunShadowTask(Task):
         sun.depth_bias = 1.0 * texel_world / max(far - near, 1e-6)
         self._light_vp = sun.view_proj
         frame.stats["sun_shadow_texel_m"] = texel_world
+        self._allocate(frame.ctx, size)
+        rec.texture = self.texture
 
-    def execute(self, frame) -> None:
-        sun = frame.sun
-        if not (sun.enabled and sun.shadow):
-            return
-        ctx = frame.ctx
-        size = frame.settings.sun_shadow_size
+    def _allocate(self, ctx: moderngl.Context, size: int) -> None:
         if self.texture is None or self.texture.size != (size, size):
             self.release()
             self.texture = ctx.depth_texture((size, size))
@@ -85,6 +93,13 @@ class SunShadowTask(Task):
             self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.texture.repeat_x = self.texture.repeat_y = False
             self.fbo = ctx.framebuffer(depth_attachment=self.texture)
+
+    def execute(self, frame: FrameContext) -> None:
+        sun = frame.sun
+        if not (sun.enabled and sun.shadow) or self.fbo is None:
+            return
+        ctx = frame.ctx
+        size = frame.settings.sun_shadow_size
         self.fbo.use()
         ctx.viewport = (0, 0, size, size)
         self.fbo.clear(depth=1.0)
@@ -92,7 +107,7 @@ class SunShadowTask(Task):
         ctx.disable(moderngl.CULL_FACE)
         prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
         set_uniform(prog, "u_light_view_proj", np.asarray(self._light_vp, dtype=np.float32))
-        delegate = self.engine.delegate
+        delegate = self.delegate
         for b in delegate.batches:
             delegate.vertex_array(b, prog, depth_only=True).render(
                 moderngl.TRIANGLES, instances=b.count

@@ -19,8 +19,11 @@ from ... import limits
 from ...shadows.atlas import ShadowAtlas
 from ...shadows.capture import RECORD_FLOATS, Capture, capture_for
 from ...shadows.scheduler import ShadowScheduler
+from ..frame import FrameContext
+from ..graph import Imported, Rec
+from ..records import InViewLights, ShadowSlots
 from ..shadow_capture import ShadowCapturer
-from .base import Task
+from .base import Pass
 
 #: Frames a shadowed light may stay out of the FoV before its map is freed.
 KEEP_OUT_OF_VIEW_FRAMES = 120
@@ -29,11 +32,21 @@ KEEP_OUT_OF_VIEW_FRAMES = 120
 POLICY_INTERVAL = 8
 
 
-class ShadowAtlasTask(Task):
+class ShadowAtlasTask(Pass):
     name = "shadow_atlas"
+    reads = (Imported("light_table"), Imported("meshes"), Rec(InViewLights))
+    writes = (Rec(ShadowSlots),)
 
-    def __init__(self, engine, atlas_size: int | None = None, budget_texels: int | None = None):
-        super().__init__(engine)
+    def __init__(
+        self,
+        delegate,
+        atlas_size: int | None = None,
+        budget_texels: int | None = None,
+        enabled: bool = True,
+    ) -> None:
+        super().__init__(delegate)
+        #: False: nothing samples local shadows (sun-only, --no-shadows): capture nothing.
+        self.enabled = enabled
         self.atlas_size = atlas_size or limits.SHADOW_ATLAS_SIZE_DEFAULT
         self.scheduler = ShadowScheduler(
             ShadowAtlas(self.atlas_size),
@@ -58,6 +71,7 @@ class ShadowAtlasTask(Task):
         self._last_policy = -(10**9)
         self._membership_changed = False
         self.records_ssbo = None
+        self._uploaded = False
         self.last_stats = None
 
     # -- per-row arrays --
@@ -105,22 +119,36 @@ class ShadowAtlasTask(Task):
         self._membership_changed = True
 
     # -- phases --
-    def prepare(self, frame) -> None:
-        eng = self.engine
-        d = eng.delegate
-        if not frame.settings.shadows or not eng.method.uses_local_lights:
-            # Nothing samples local shadows (sun-only): capture nothing.
-            d.fov_shadow_maps = None
+    def prepare(self, frame: FrameContext) -> None:
+        if not self.enabled:
             self._plan = []
+            frame.put(ShadowSlots())
             return
-        t = d.light_table
-        sch = self.scheduler
-        fidx = eng.frame_index
+        t = self.delegate.light_table
         self._grow(t.n_rows)
-        rows = d.fov_rows
+        rows = frame.get(InViewLights).rows
+        changed = self._register_changed(rows, frame.frame_index)
+        self._forget_gone(frame.frame_index, len(changed))
+        self._mark_static_geometry()
+        self._run_policy(frame)
+        self._membership_changed = False
+        fidx = frame.frame_index
+        self._plan = [] if (self.frozen or not self._row_of) else self.scheduler.plan_frame(fidx)
+        if self.capturer is None:
+            self.capturer = ShadowCapturer(frame.ctx, self.atlas_size)
+        self._update_records()
+        self._reserve_records_buffer(frame)
+        maps = self._slots_for(rows)
+        frame.put(ShadowSlots(maps=maps, atlas=self.capturer.atlas, records=self.records_ssbo))
+        frame.stats["shadow_maps"] = int(np.count_nonzero(maps >= 0))
+
+    def _register_changed(self, rows: np.ndarray, fidx: int) -> np.ndarray:
+        """Register new shadowed in-view lights, update moved/edited ones (rows whose
+        table version moved since we last looked). Returns those rows."""
+        t = self.delegate.light_table
+        sch = self.scheduler
         shadowed = rows[t.shadow_enable[rows]] if len(rows) else rows
         self._last_seen[shadowed] = fidx
-        # New or changed lights only (row version moved since we last looked).
         ver = t.cols["version"][shadowed]
         changed = shadowed[ver != self._seen_version[shadowed]]
         for r in changed.tolist():
@@ -154,19 +182,27 @@ class ShadowAtlasTask(Task):
                 sch.set_transform(key, c)
             self._captures[key] = c
             self._seen_version[r] = t.cols["version"][r]
-        # Forget lights that vanished, lost their shadows or stayed out of view.
-        if self._row_of and (self._membership_changed or fidx % 16 == 0 or len(changed)):
-            keys = list(self._row_of)
-            rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
-            c = t.cols
-            ok = c["live"][rr] & c["shadow_enable"][rr] & c["enabled"][rr]
-            stale = (fidx - self._last_seen[rr]) > KEEP_OUT_OF_VIEW_FRAMES
-            for i in np.nonzero(~ok | stale)[0].tolist():
+        return changed
+
+    def _forget_gone(self, fidx: int, n_changed: int) -> None:
+        """Forget lights that vanished, lost their shadows or stayed out of view."""
+        if not (self._row_of and (self._membership_changed or fidx % 16 == 0 or n_changed)):
+            return
+        t = self.delegate.light_table
+        keys = list(self._row_of)
+        rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
+        c = t.cols
+        ok = c["live"][rr] & c["shadow_enable"][rr] & c["enabled"][rr]
+        stale = (fidx - self._last_seen[rr]) > KEEP_OUT_OF_VIEW_FRAMES
+        for i in np.nonzero(~ok | stale)[0].tolist():
+            self._forget(keys[i])
+        for i in np.nonzero(ok & ~stale)[0].tolist():
+            if t.paths[int(rr[i])] != keys[i]:
                 self._forget(keys[i])
-            for i in np.nonzero(ok & ~stale)[0].tolist():
-                if t.paths[int(rr[i])] != keys[i]:
-                    self._forget(keys[i])
-        # Static geometry changed inside a static map's range.
+
+    def _mark_static_geometry(self) -> None:
+        """Static geometry changed inside a static map's range: re-capture it."""
+        d = self.delegate
         if d.changed_static_bounds and self._captures:
             reg = list(self._captures)
             pos = np.array([self._captures[k].position for k in reg])
@@ -176,31 +212,35 @@ class ShadowAtlasTask(Task):
             dd = pos[:, None, :] - np.clip(pos[:, None, :], lo[None], hi[None])
             hit = np.any((dd**2).sum(-1) <= (rng**2)[:, None], axis=1)
             for i in np.nonzero(hit)[0].tolist():
-                sch.mark_dirty(reg[i], "geometry")
+                self.scheduler.mark_dirty(reg[i], "geometry")
         d.changed_static_bounds.clear()
-        # Resolution policy (sizes, priorities), amortised.
-        if self._row_of and (
+
+    def _run_policy(self, frame: FrameContext) -> None:
+        """Resolution policy (sizes, priorities), amortised over POLICY_INTERVAL frames."""
+        fidx = frame.frame_index
+        if not self._row_of or not (
             self._membership_changed or fidx - self._last_policy >= POLICY_INTERVAL
         ):
-            keys = list(self._row_of)
-            rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
-            pos = t.cols["position"][rr]
-            sch.update_lights(
-                keys,
-                distance_m=np.linalg.norm(pos - frame.view.position, axis=1),
-                flux_lm=t.cols["flux"][rr].astype(np.float64),
-                range_m=t.cols["range"][rr].astype(np.float64),
-                viewport_height_px=float(frame.view.height),
-                fov_y_rad=2.0 * float(np.arctan(frame.view.tan_half[1])),
-                in_view=self._last_seen[rr] == fidx,
-            )
-            self._last_policy = fidx
-            self._records_dirty = True  # rects may have moved
-        self._membership_changed = False
-        self._plan = [] if (self.frozen or not self._row_of) else sch.plan_frame(fidx)
-        # Records: planned maps become valid this frame; rect changes invalidate.
-        if self.capturer is None:
-            self.capturer = ShadowCapturer(frame.ctx, self.atlas_size)
+            return
+        t = self.delegate.light_table
+        keys = list(self._row_of)
+        rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
+        pos = t.cols["position"][rr]
+        self.scheduler.update_lights(
+            keys,
+            distance_m=np.linalg.norm(pos - frame.view.position, axis=1),
+            flux_lm=t.cols["flux"][rr].astype(np.float64),
+            range_m=t.cols["range"][rr].astype(np.float64),
+            viewport_height_px=float(frame.view.height),
+            fov_y_rad=2.0 * float(np.arctan(frame.view.tan_half[1])),
+            in_view=self._last_seen[rr] == fidx,
+        )
+        self._last_policy = fidx
+        self._records_dirty = True  # rects may have moved
+
+    def _update_records(self) -> None:
+        """Planned maps become valid this frame; rect changes invalidate."""
+        sch = self.scheduler
         if self._records_dirty:
             for key in self._row_of:
                 s = self._slot(key)
@@ -217,6 +257,9 @@ class ShadowAtlasTask(Task):
             self._records[s] = self.capturer.record(u.transform, u.rect)
             self._slot_rect[s] = u.rect
             self._slot_valid[s] = True
+
+    def _slots_for(self, rows: np.ndarray) -> np.ndarray:
+        """Record slot per in-view row (float32 for the light record; -1: none)."""
         self._slot_of_row[:] = -1
         if self._slot_of:
             keys = list(self._slot_of)
@@ -224,28 +267,32 @@ class ShadowAtlasTask(Task):
             rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
             v = self._slot_valid[slots]
             self._slot_of_row[rr[v]] = slots[v]
-        maps = self._slot_of_row[rows].astype(np.float32) if len(rows) else np.zeros(0, np.float32)
-        d.fov_shadow_maps = maps
-        frame.stats["shadow_maps"] = int(np.count_nonzero(maps >= 0))
+        return self._slot_of_row[rows].astype(np.float32) if len(rows) else np.zeros(0, np.float32)
 
-    def execute(self, frame) -> None:
-        if self.capturer is None:
+    def _reserve_records_buffer(self, frame: FrameContext) -> None:
+        nbytes = max(len(self._slot_rect), 1) * RECORD_FLOATS * 4
+        if self.records_ssbo is None or self.records_ssbo.size < nbytes:
+            if self.records_ssbo is not None:
+                self.records_ssbo.release()
+            self.records_ssbo = frame.ctx.buffer(reserve=max(nbytes, RECORD_FLOATS * 4 * 64))
+            self._uploaded = False
+
+    def registered_keys(self) -> list[str]:
+        """Prim paths of the shadowed lights the scheduler tracks (tests, tools)."""
+        return list(self._row_of)
+
+    def execute(self, frame: FrameContext) -> None:
+        if self.capturer is None or not self.enabled:
             return
-        d = self.engine.delegate
+        d = self.delegate
         for u in self._plan:
             if u.rect is None or u.transform is None:
                 continue
             self.capturer.capture(d, u.key, u.transform, u.rect, u.dynamic)
         self.scheduler.commit(self._plan)
         n = len(self._slot_rect)
-        data = self._records[: max(n, 1)].tobytes()
-        if self.records_ssbo is None or self.records_ssbo.size < len(data):
-            if self.records_ssbo is not None:
-                self.records_ssbo.release()
-            self.records_ssbo = frame.ctx.buffer(reserve=max(len(data), RECORD_FLOATS * 4 * 64))
-            self._uploaded = None
-        if self._plan or getattr(self, "_uploaded", None) is None:
-            self.records_ssbo.write(data)
+        if self._plan or not self._uploaded:
+            self.records_ssbo.write(self._records[: max(n, 1)].tobytes())
             self._uploaded = True
         st = self.scheduler.stats()
         self.last_stats = st
@@ -267,16 +314,6 @@ class ShadowAtlasTask(Task):
                 "shadow_lights": st.lights,
             }
         )
-
-    def bind(self, prog, unit: int) -> int:
-        """Bind the atlas and records for a lighting program; returns the next unit."""
-        if self.records_ssbo is not None:
-            self.records_ssbo.bind_to_storage_buffer(1)
-        if self.capturer is not None and "u_shadow_atlas" in prog:
-            self.capturer.atlas.use(unit)
-            prog["u_shadow_atlas"].value = unit
-            return unit + 1
-        return unit
 
     def release(self) -> None:
         if self.capturer is not None:

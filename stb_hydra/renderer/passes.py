@@ -1,0 +1,87 @@
+"""The pass registry: which passes a frame has, built from the settings and the
+lighting method. Order here is only the tie-break; the graph orders passes by
+what they read and write (``graph.compile_graph``).
+
+Adding a pass: write ``tasks/<name>.py`` (a ``Pass`` with ``reads``/``writes``),
+then add one line to :func:`build_passes`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import moderngl
+
+from ..color.ocio import ColorPipeline
+from .frame import RenderSettings
+from .gl_delegate import GLRenderDelegate
+from .lighting.base import LightingMethod
+from .tasks.aov_output import AovOutputTask, LightCountTask
+from .tasks.base import Pass
+from .tasks.color_correction import ColorCorrectionTask
+from .tasks.distant_lights import DistantLightsTask
+from .tasks.frame_uniforms import FrameUniformsTask
+from .tasks.gbuffer import GBufferTask
+from .tasks.hiz import HIZ_LEVELS, HiZTask
+from .tasks.light_cull import LightCullTask
+from .tasks.light_upload import LightUploadTask
+from .tasks.lighting import LightingTask
+from .tasks.shadow import SunShadowTask
+from .tasks.shadow_atlas import ShadowAtlasTask
+from .tasks.taa import AccumulateTask
+
+#: Resources owned outside the graph (the delegate's prims, the OCIO pipeline).
+IMPORTS = ("light_table", "meshes", "color_pipeline")
+
+
+@dataclass
+class PassSet:
+    """The passes of one engine configuration, with handles the engine drives."""
+
+    passes: list[Pass]
+    lighting: LightingTask
+    accumulate: AccumulateTask
+    aov_output: AovOutputTask
+    frame_uniforms: FrameUniformsTask
+    shadow_atlas: ShadowAtlasTask
+
+
+def build_passes(
+    ctx: moderngl.Context,
+    delegate: GLRenderDelegate,
+    settings: RenderSettings,
+    method: LightingMethod,
+    color: ColorPipeline,
+) -> PassSet:
+    """Every registered pass for ``settings`` and ``method`` (the graph culls the
+    ones whose outputs nobody reads, e.g. debug views that were not requested)."""
+    atlas = ShadowAtlasTask(
+        delegate,
+        settings.shadow_atlas_size,
+        settings.realtime_shadow_budget(),
+        enabled=settings.shadows and method.uses_local_lights,
+    )
+    lighting = LightingTask(delegate, method)
+    accumulate = AccumulateTask(delegate)
+    uniforms = FrameUniformsTask(delegate, ctx)
+    aov = AovOutputTask(delegate, method)
+    passes: list[Pass] = [
+        DistantLightsTask(delegate),
+        LightCullTask(delegate),
+        SunShadowTask(delegate),
+        atlas,
+        LightUploadTask(delegate),
+        uniforms,
+        GBufferTask(delegate),
+        HiZTask(delegate, max(HIZ_LEVELS, method.hiz_level)),
+        lighting,
+        accumulate,
+        ColorCorrectionTask(delegate, color),
+        *method.debug_passes(),
+        LightCountTask(delegate),
+        aov,
+    ]
+    return PassSet(passes, lighting, accumulate, aov, uniforms, atlas)
+
+
+__all__ = ["IMPORTS", "PassSet", "build_passes"]

@@ -1,0 +1,90 @@
+"""Typed per-frame records passed between passes on the frame context.
+
+Each record has one producing pass (see ``graph.py``); passes read them with
+``frame.get(RecordClass)`` and write them with ``frame.put(record)``, both checked
+against the pass's declarations. They live for one frame; GPU objects they point
+to are owned by the delegate or by the producing pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from .frame_data import SunSetup
+
+
+@dataclass
+class DistantLights:
+    """The shadowed sun (brightest DistantLight), up to 3 more distant lights
+    (direction to the light, illuminance lux RGB, diffuse, specular) and the
+    ambient radiance (nits, dome lights + settings.ambient). World space."""
+
+    sun: SunSetup = field(default_factory=SunSetup)
+    extra: list = field(default_factory=list)
+    ambient: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass
+class InViewLights:
+    """Lights whose influence sphere meets the view frustum, in light-buffer order.
+
+    ``rows``: light-table rows (SSBO index i = rows[i]); the feature flags say
+    whether any of them has a cone / an IES profile (shader variants)."""
+
+    rows: np.ndarray
+    has_cones: bool = False
+    has_ies: bool = False
+
+    @property
+    def count(self) -> int:
+        return len(self.rows)
+
+
+@dataclass
+class ShadowSlots:
+    """Shadow-map record slot per in-view light (-1: unshadowed this frame) and the
+    atlas objects to bind: the 16-bit atlas texture and the record SSBO (binding 1).
+    ``maps`` None: local shadows are off for this frame."""
+
+    maps: np.ndarray | None = None
+    atlas: moderngl.Texture | None = None
+    records: moderngl.Buffer | None = None
+
+    @property
+    def any(self) -> bool:
+        return self.maps is not None and bool(np.any(self.maps >= 0))
+
+
+@dataclass
+class SunShadowMap:
+    """The sun's shadow depth texture (None: no sun shadow this frame)."""
+
+    texture: moderngl.Texture | None = None
+
+
+@dataclass
+class LightBuffer:
+    """The uploaded in-view light SSBO (binding 0) and what the upload did."""
+
+    ssbo: moderngl.Buffer | None
+    count: int
+    has_shadows: bool = False
+    uploaded: bool = False
+
+
+@dataclass
+class SceneColor:
+    """Name of the render buffer holding the frame's scene-linear colour
+    (``lighting``, or the accumulation buffer once averaged)."""
+
+    buffer: str = "lighting"
+
+
+@dataclass
+class FrameBlock:
+    """The per-frame uniform block has been written and bound (binding 0)."""
+
+    big_tiles: tuple[int, int] = (0, 0)

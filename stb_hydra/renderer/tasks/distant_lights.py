@@ -1,0 +1,61 @@
+"""Distant lights and ambient: the brightest DistantLight becomes the (shadowed)
+sun, up to ``MAX_EXTRA_DISTANT`` more are unshadowed, dome lights add to the
+ambient radiance -> the frame's ``DistantLights`` record."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...color import LUMINANCE_REC709
+from ...scene import prims
+from ..frame import FrameContext
+from ..frame_data import MAX_EXTRA_DISTANT, SunSetup
+from ..graph import Imported, Rec
+from ..records import DistantLights
+from .base import Pass
+
+
+class DistantLightsTask(Pass):
+    name = "distant_lights"
+    reads = (Imported("light_table"),)
+    writes = (Rec(DistantLights),)
+
+    def prepare(self, frame: FrameContext) -> None:
+        t = self.delegate.light_table
+        rec = DistantLights()
+        rows = t.rows_of_type(prims.DISTANT_LIGHT)
+        rows = rows[t.enabled[rows]]
+        if len(rows):
+            lum = t.intensity[rows] @ LUMINANCE_REC709
+            order = rows[np.argsort(-lum, kind="stable")]
+            rec.sun = self._sun(int(order[0]))
+            rec.extra = [
+                (
+                    -t.direction[r].astype(np.float64),
+                    t.intensity[r].astype(np.float64),
+                    float(t.diffuse[r]),
+                    float(t.specular[r]),
+                )
+                for r in order[1 : 1 + MAX_EXTRA_DISTANT]
+            ]
+            if len(order) > 1 + MAX_EXTRA_DISTANT:
+                frame.warn(
+                    f"{len(order)} distant lights: only the {1 + MAX_EXTRA_DISTANT} brightest"
+                    " are used"
+                )
+        domes = t.rows_of_type(prims.DOME_LIGHT)
+        domes = domes[t.enabled[domes]]
+        amb = t.intensity[domes].sum(axis=0).astype(np.float64) if len(domes) else np.zeros(3)
+        rec.ambient = amb + frame.settings.ambient
+        frame.put(rec)
+
+    def _sun(self, r: int) -> SunSetup:
+        t = self.delegate.light_table
+        sun = SunSetup()
+        sun.direction_to_sun = -t.direction[r].astype(np.float64)
+        sun.illuminance = t.intensity[r].astype(np.float64)
+        sun.enabled = True
+        sun.shadow = bool(t.shadow_enable[r])
+        sun.diffuse, sun.specular = float(t.diffuse[r]), float(t.specular[r])
+        sun.shadow_color = t.shadow_color[r].astype(np.float64)
+        return sun

@@ -1,0 +1,56 @@
+"""The per-frame uniform block (``shaders/common/frame.glsl``, binding 0): view,
+previous view-projection, sun, ambient, light count, seed, big-tile grid."""
+
+from __future__ import annotations
+
+import math
+
+import moderngl
+import numpy as np
+
+from ... import limits
+from ..frame import FrameContext
+from ..frame_data import FrameUniforms, pack_frame_block
+from ..graph import Rec
+from ..records import DistantLights, FrameBlock, InViewLights
+from .base import Pass
+
+
+class FrameUniformsTask(Pass):
+    name = "frame_uniforms"
+    reads = (Rec(DistantLights), Rec(InViewLights))
+    writes = (Rec(FrameBlock),)
+
+    def __init__(self, delegate, ctx: moderngl.Context) -> None:
+        super().__init__(delegate)
+        self.uniforms = FrameUniforms(ctx)
+        self._prev_view_proj: np.ndarray | None = None
+
+    def reset_history(self) -> None:
+        """Forget the previous view (motion vectors restart from zero)."""
+        self._prev_view_proj = None
+
+    def prepare(self, frame: FrameContext) -> None:
+        view = frame.view
+        prev = self._prev_view_proj if self._prev_view_proj is not None else view.view_proj
+        w, h = frame.buffers.size
+        big = (math.ceil(w / limits.BIG_TILE_PX), math.ceil(h / limits.BIG_TILE_PX))
+        lights = frame.get(DistantLights)
+        self.uniforms.update(
+            pack_frame_block(
+                view,
+                prev,
+                lights.sun,
+                lights.ambient,
+                frame.get(InViewLights).count,
+                frame.frame_index,
+                frame.seed,
+                big,
+                lights.extra,
+            )
+        )
+        self._prev_view_proj = view.view_proj
+        frame.put(FrameBlock(big_tiles=big))
+
+    def release(self) -> None:
+        self.uniforms.release()
