@@ -101,6 +101,12 @@ def add_parser(sub) -> None:
         help="local shadow filter: 4-tap gather PCF, or stochastic PCF",
     )
     p.add_argument("--verbose", "-v", action="store_true", help="print GL renderer and warnings")
+    p.add_argument(
+        "--print-graph",
+        action="store_true",
+        help="print the frame's pass graph (passes in order, what each reads and writes, "
+        "render buffers) for these settings and exit without rendering",
+    )
     p.set_defaults(func=main)
 
 
@@ -123,6 +129,10 @@ def _run(args: argparse.Namespace) -> int:
     ext = os.path.splitext(args.output)[1].lower()
     want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
     eng.request_aovs(want)
+    if args.print_graph:
+        print(eng.describe())
+        eng.release()
+        return EXIT_OK
     stats = _stats_header(args, eng, settings, pipeline)
     written = _render_frames(args, eng, frames, aovs, ext, pipeline, stats)
     return _finish(args, stats, written)
@@ -135,9 +145,9 @@ def _check_settings(args: argparse.Namespace) -> list[str]:
     if args.accumulate < 1:
         raise CliError("--accumulate must be >= 1")
     aovs = [a.strip() for a in args.aov.split(",") if a.strip()]
-    from ..renderer.tasks.aov_output import DEBUG_AOVS, check_debug_aovs
+    from ..renderer.tasks.aov_output import AOVS, check_debug_aovs
 
-    known = ("color", "depth", "normal", "albedo", *DEBUG_AOVS)
+    known = tuple(a for a in AOVS if a != "display")  # display: the PNG itself
     unknown = sorted(set(aovs) - set(known))
     if unknown:
         raise CliError(f"unknown AOV(s) {', '.join(unknown)} (choose from {','.join(known)})")
