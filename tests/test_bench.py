@@ -31,7 +31,7 @@ def test_method_defaults_apply_and_entries_win():
     args = SimpleNamespace(method_option=["stb:K=32,eps=0.05"], opts_stb=["N=2"])
     for name in AVAIL:
         if name != "stb":
-            setattr(args, bench._flag_dest(name), None)
+            setattr(args, bench.flag_dest(name), None)
     d = bench.method_defaults(args, AVAIL)
     assert d["stb"] == {"K": 32, "eps": 0.05, "N": 2}
     ms = bench.parse_methods(["stb,stb:N=4"], d, AVAIL)

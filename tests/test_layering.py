@@ -31,27 +31,6 @@ def test_gl_free_modules_load_without_renderer_or_moderngl(module: str):
     assert json.loads(r.stdout.strip().splitlines()[-1]) == []
 
 
-def test_shadow_camera_maths_equal_the_renderers():
-    from stb_hydra.renderer.camera import look_at, perspective
-    from stb_hydra.shadows import capture
-
-    rng = np.random.default_rng(7)
-    for _ in range(50):
-        eye, target = rng.normal(size=3) * 5, rng.normal(size=3) * 5
-        up = (0.0, 0.0, 1.0) if rng.random() < 0.3 else (0.0, 1.0, 0.0)
-        assert np.array_equal(capture._look_at(eye, target, up=up), look_at(eye, target, up=up))
-        tx, ty = rng.uniform(0.05, 3.0, 2)
-        ox, oy = rng.uniform(-0.5, 0.5, 2)
-        near = rng.uniform(0.01, 1.0)
-        far = near + rng.uniform(0.1, 100.0)
-        assert np.array_equal(capture._perspective(tx, ty, ox, oy, near, far),
-                              perspective(tx, ty, ox, oy, near, far))
-    # straight up / down: the degenerate-up fallback
-    for d in ((0.0, 1.0, 0.0), (0.0, -1.0, 0.0)):
-        assert np.array_equal(capture._look_at(np.zeros(3), np.array(d)),
-                              look_at(np.zeros(3), np.array(d)))
-
-
 def test_map_record_layout():
     from stb_hydra import limits
     from stb_hydra.shadows.atlas import AtlasRect

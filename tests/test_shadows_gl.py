@@ -3,8 +3,6 @@ mapping, no leaks across octahedral seams, static/dynamic maps, capture rule."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom
@@ -361,8 +359,6 @@ def test_atlas_stats_reported(gl_ctx):
     finally:
         eng.release()
 
-
-_ = math
 
 
 def test_stochastic_pcf_softens_but_agrees_away_from_edges(gl_ctx):

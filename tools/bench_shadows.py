@@ -63,7 +63,7 @@ def run_static(stage, width, height, max_frames=400) -> dict:
             tm = eng.timings.frames[-1]
             capture_ms.append(tm.get("prepare.shadow_atlas", 0.0) + tm.get("shadow_atlas", 0.0))
             sch = atlas.scheduler
-            keys = list(atlas._row_of)
+            keys = atlas.registered_keys()
             if keys and all(sch.is_fresh(k) for k in keys):
                 fresh_at = i + 1
                 break

@@ -156,12 +156,12 @@ def method_defaults(args: argparse.Namespace, available: list[str]) -> dict[str,
             )
         out.setdefault(name, {}).update(parse_options(opts, "--method-option"))
     for name in available:
-        for text in getattr(args, _flag_dest(name), None) or []:
+        for text in getattr(args, flag_dest(name), None) or []:
             out.setdefault(name, {}).update(parse_options(text, f"--{name}"))
     return out
 
 
-def _flag_dest(method: str) -> str:
+def flag_dest(method: str) -> str:
     return "opts_" + method.replace("-", "_")
 
 
@@ -253,7 +253,7 @@ def add_parser(sub) -> None:
         try:
             p.add_argument(
                 f"--{name}",
-                dest=_flag_dest(name),
+                dest=flag_dest(name),
                 action="append",
                 metavar="KEY=VALUE[,...]",
                 help=f"default options of every '{name}' entry",

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.prims import CameraPrim
+from ..shadows.capture import look_at, perspective
 
 
 @dataclass
@@ -46,21 +47,6 @@ class ViewSetup:
         )
         n = np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
         return planes / np.maximum(n, 1e-30)
-
-
-def perspective(tan_x: float, tan_y: float, off_x: float, off_y: float, near: float, far: float):
-    """Row-vector projection for an off-axis frustum (view looks down -Z)."""
-    l, r = (off_x - tan_x), (off_x + tan_x)
-    b, t = (off_y - tan_y), (off_y + tan_y)
-    m = np.zeros((4, 4))
-    m[0, 0] = 2.0 / (r - l)
-    m[1, 1] = 2.0 / (t - b)
-    m[2, 0] = (r + l) / (r - l)
-    m[2, 1] = (t + b) / (t - b)
-    m[2, 2] = -(far + near) / (far - near)
-    m[2, 3] = -1.0
-    m[3, 2] = -2.0 * far * near / (far - near)
-    return m
 
 
 def orthographic(half_w: float, half_h: float, off_x: float, off_y: float, near: float, far: float):
@@ -123,22 +109,6 @@ def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float =
         orthographic=cam.projection == "orthographic",
         exposure_scale=exposure_scale,
     )
-
-
-def look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarray:
-    """Camera-to-world (row-vector) looking from ``eye`` at ``target``."""
-    eye = np.asarray(eye, dtype=np.float64)
-    f = np.asarray(target, dtype=np.float64) - eye
-    f /= max(np.linalg.norm(f), 1e-30)
-    up = np.asarray(up, dtype=np.float64)
-    if abs(float(f @ up)) > 0.999:
-        up = np.array([0.0, 0.0, 1.0])
-    x = np.cross(f, up)
-    x /= np.linalg.norm(x)
-    y = np.cross(x, f)
-    m = np.eye(4)
-    m[0, :3], m[1, :3], m[2, :3], m[3, :3] = x, y, -f, eye
-    return m
 
 
 def framing_camera(bounds_min, bounds_max, aspect: float = 16 / 9) -> CameraPrim:

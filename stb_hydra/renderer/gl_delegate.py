@@ -210,7 +210,7 @@ class GLRenderDelegate(RenderDelegate):
     def resolve_material(self, mesh: prims.MeshPrim) -> MaterialParams:
         sp = self.materials.get(mesh.material) if mesh.material else None
         mat = sp.material if sp is not None else None
-        usable = mat is not None and not any("using defaults" in w for w in mat.warnings)
+        usable = mat is not None and not mat.uses_defaults
         if usable:
             return MaterialParams(
                 base=_t3(mat.diffuse_color),
@@ -393,7 +393,7 @@ class GLRenderDelegate(RenderDelegate):
         return True
 
     def _upload_ies(self) -> None:
-        from ..scene.lights import _load_ies_cached
+        from ..scene.lights import load_ies_cached
 
         layers = self.ies.layers
         n = max(layers.values(), default=-1) + 1
@@ -410,7 +410,7 @@ class GLRenderDelegate(RenderDelegate):
             if layer >= n:
                 continue
             try:
-                table = _load_ies_cached(path).bake_table()
+                table = load_ies_cached(path).bake_table()
             except Exception:  # noqa: BLE001 - a profile that vanished renders flat
                 continue
             mx = float(np.max(table)) if table.size else 0.0

@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ..scene import prims
-from ..scene.prims import LightPrim
+from ..scene.prims import NO_CONE_CUTOFF_RAD, LightPrim
 
 TYPE_CODES = {t: i for i, t in enumerate(prims.LIGHT_TYPES)}
 LOCAL_TYPE_CODES = np.array([TYPE_CODES[t] for t in prims.LOCAL_LIGHT_TYPES], dtype=np.int8)
@@ -31,8 +31,8 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "emission": ((), np.int8, 0),
     "enabled": ((), np.bool_, False),
     "live": ((), np.bool_, False),
-    "cone_cutoff": ((), np.float32, math.pi),  # radians
-    "cone_start": ((), np.float32, math.pi),  # radians, smoothstep start
+    "cone_cutoff": ((), np.float32, NO_CONE_CUTOFF_RAD),  # radians
+    "cone_start": ((), np.float32, NO_CONE_CUTOFF_RAD),  # radians, smoothstep start
     "focus": ((), np.float32, 0.0),
     "focus_tint": ((3,), np.float32, 0.0),
     "ies_layer": ((), np.int32, -1),
@@ -131,7 +131,7 @@ class LightTable:
             c["cone_cutoff"][row] = cut
             c["cone_start"][row] = cut * (1.0 - lp.cone_softness)
         else:
-            c["cone_cutoff"][row] = c["cone_start"][row] = math.pi
+            c["cone_cutoff"][row] = c["cone_start"][row] = NO_CONE_CUTOFF_RAD
         c["focus"][row] = lp.focus
         c["focus_tint"][row] = lp.focus_tint
         c["ies_layer"][row] = ies_layer

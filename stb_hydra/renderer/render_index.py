@@ -80,10 +80,6 @@ class RenderIndex:
                 self._dirty[e.path] = DirtyBits.AllDirty
 
     # -- sync --
-    @property
-    def dirty_count(self) -> int:
-        return len(self._dirty)
-
     def sync_all(self) -> int:
         """Sync every dirty prim (materials and cameras first, then geometry and
         lights). Returns the number of prims synced."""

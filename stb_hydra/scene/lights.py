@@ -224,9 +224,6 @@ def load_ies_cached(path: str) -> IesProfile:
     return prof
 
 
-#: Deprecated spelling of :func:`load_ies_cached`, kept until ``renderer.gl_delegate``
-#: switches to the public name.
-_load_ies_cached = load_ies_cached
 
 
 def ies_theta(theta: np.ndarray, angle_scale: float) -> np.ndarray:

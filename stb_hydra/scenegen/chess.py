@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import (
+    REC709_Y,
     UsdaWriter,
     asset_path,
     box,
@@ -130,7 +131,7 @@ def chess_scene_usda(
     use_kelvin = rng.random(n) < 0.5
     kelvin = np.round(rng.uniform(2200.0, 7500.0, n), -1)
     rgb = hsv_to_rgb(rng.random(n), rng.uniform(0.3, 0.85, n), np.ones(n))
-    rgb_y = rgb @ np.array([0.2126, 0.7152, 0.0722])
+    rgb_y = rgb @ np.array(REC709_Y)
     cd = flux / (4 * math.pi)
     nits = cd / (math.pi * r * r)
     nits = np.where(use_kelvin, nits, nits / rgb_y)

@@ -101,7 +101,7 @@ def chess_set(explicit: Path | str | None = None) -> Path:
 # --------------------------------------------------------------------------------------
 
 #: Rec.709 / sRGB luminance weights: the luminance of an RGB light colour.
-REC709_Y = (0.2126, 0.7152, 0.0722)
+REC709_Y = (0.2126, 0.7152, 0.0722)  # = color.LUMINANCE_REC709 (sibling layer)
 
 
 def luminance(rgb: Sequence[float]) -> float:

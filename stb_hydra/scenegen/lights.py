@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from .common import (
+    REC709_Y,
     UsdaWriter,
     asset_path,
     box,
@@ -152,7 +153,7 @@ def lights_scene_usda(
     use_kelvin = rng.random(n) < 0.5
     kelvin = np.round(rng.uniform(2000.0, 9000.0, n), -1)
     rgb = hsv_to_rgb(rng.random(n), rng.uniform(0.3, 0.9, n), np.ones(n))
-    rgb_y = rgb @ np.array([0.2126, 0.7152, 0.0722])  # colours keep max 1; nits compensate
+    rgb_y = rgb @ np.array(REC709_Y)  # colours keep max 1; nits compensate
     shadowed = rng.random(n) < shadow_fraction
     dynamic = shadowed & (rng.random(n) < dynamic_fraction)
     cone = rng.uniform(20.0, 60.0, n)

@@ -76,9 +76,9 @@ def capture_for(position, direction, range_m, radius, cone_cutoff_rad, emission)
 def spot_view_proj(c: Capture) -> np.ndarray:
     pos = np.array(c.position)
     d = np.array(c.direction)
-    to_world = _look_at(pos, pos + d, up=_up_for(d))
+    to_world = look_at(pos, pos + d, up=_up_for(d))
     t = math.tan(c.spot_half_angle)
-    return np.linalg.inv(to_world) @ _perspective(t, t, 0.0, 0.0, c.near, c.range)
+    return np.linalg.inv(to_world) @ perspective(t, t, 0.0, 0.0, c.near, c.range)
 
 
 def _up_for(d: np.ndarray):
@@ -89,7 +89,7 @@ def face_rotations() -> np.ndarray:
     """(6, 3, 3) world -> face-view rotations (row-vector), face order +X -X +Y -Y +Z -Z."""
     out = np.zeros((6, 3, 3))
     for i, (f, up) in enumerate(_FACES):
-        m = _look_at(np.zeros(3), np.array(f), up=up)
+        m = look_at(np.zeros(3), np.array(f), up=up)
         out[i] = np.linalg.inv(m)[:3, :3]
     return out
 
@@ -118,12 +118,11 @@ def map_record(c: Capture, rect: AtlasRect, atlas_size: int) -> np.ndarray:
     return rec
 
 
-# Row-vector camera matrices, as ``stb_hydra.renderer.camera.look_at`` / ``perspective``
-# (this package may not import the renderer; tests/test_layering.py checks that
-# the two stay equal).
+# Row-vector camera matrices (GL-free, so they live here; ``renderer.camera`` re-exports
+# them for the main camera and the sun).
 
 
-def _look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+def look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """Camera-to-world (row-vector) looking from ``eye`` at ``target``."""
     eye = np.asarray(eye, dtype=np.float64)
     f = np.asarray(target, dtype=np.float64) - eye
@@ -139,7 +138,7 @@ def _look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndar
     return m
 
 
-def _perspective(tan_x: float, tan_y: float, off_x: float, off_y: float, near: float,
+def perspective(tan_x: float, tan_y: float, off_x: float, off_y: float, near: float,
                  far: float) -> np.ndarray:
     """Row-vector projection for an off-axis frustum (view looks down -Z)."""
     l, r = (off_x - tan_x), (off_x + tan_x)
