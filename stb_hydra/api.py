@@ -35,13 +35,18 @@ def render(
     alpha: bool = False,
     **options,
 ) -> np.ndarray:
-    """Render one image; returns (h, w, 3) (or (h, w, 4) with ``alpha``) float32.
+    """Render one image of ``stage`` (a ``Usd.Stage`` or a path) at ``time``.
 
+    Returns (h, w, 3) float32 (``alpha``: (h, w, 4)), top row first: scene-linear
+    radiance in nits, linear Rec.709 primaries, times the camera's exposure scale.
     ``height`` defaults to the camera's aspect ratio; ``camera`` defaults to the
     stage's first camera, else a free camera framing the stage bounds;
-    ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails. Other
-    keywords are ``RenderSettings`` fields (``shadows``, ``shadow_budget``...) or,
-    failing that, options of the lighting method (e.g. ``N=4`` for stb).
+    ``lighting`` is a method name (``stb_hydra.renderer.lighting.METHODS``);
+    ``accumulate`` averages that many frames with distinct seeds derived from
+    ``seed``; ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails.
+    Other keywords are ``RenderSettings`` fields (``shadows``, ``shadow_budget``
+    (default None: every shadow map captured before the frame)...) or, failing that,
+    options of the lighting method (e.g. ``N=4`` for stb), validated by its schema.
     """
     fields = set(RenderSettings.__dataclass_fields__)
     extra = {k: v for k, v in options.items() if k in fields}
