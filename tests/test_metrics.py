@@ -97,3 +97,56 @@ def test_dropped_summary():
     s = dropped_summary([{"dropped_lights": 3}, {"dropped_lights": 5}, {}])
     assert s == {"dropped_median": 3.0, "dropped_max": 5.0}
     assert dropped_summary([]) == {"dropped_median": 0.0, "dropped_max": 0.0}
+
+
+# -- what a person sees: structured noise, HDR-FLIP at mid grey ------------------------------
+
+
+def test_white_noise_scores_one_by_the_closed_form():
+    from stb_hydra.metrics import spectral_structure
+
+    rng = np.random.default_rng(1)
+    s = [spectral_structure(rng.normal(size=(180, 320))) for _ in range(8)]
+    # |FFT|^2 of white noise is exponential: the top q holds q (1 - ln q) of the mass.
+    assert 0.9 <= float(np.mean(s)) <= 1.1, s
+
+
+def test_checkerboard_and_quad_noise_are_structured():
+    from stb_hydra.metrics import spectral_structure
+
+    rng = np.random.default_rng(2)
+    y, x = np.mgrid[:180, :320]
+    cb = ((x + y) % 2) * 2.0 - 1.0
+    assert spectral_structure(cb) > 25.0  # one frequency bin holds all the energy
+    assert spectral_structure(cb + rng.normal(size=cb.shape)) > 8.0
+    quad = np.repeat(np.repeat(rng.normal(size=(90, 160)), 2, 0), 2, 1)
+    assert 1.9 <= spectral_structure(quad) <= 2.8
+    # low frequencies (< 1/16 cycle/px) do not count: smooth blotches are not "structure"
+    wave = np.sin(2 * np.pi * x / 64.0) + 0.05 * rng.normal(size=(180, 320))
+    assert spectral_structure(wave) < 1.5
+
+
+def test_structured_noise_is_relative_and_scale_free():
+    from stb_hydra.metrics import relative_error, structured_noise
+
+    rng = np.random.default_rng(3)
+    ref = np.broadcast_to(rng.uniform(0.5, 2.0, (90, 160, 1)), (90, 160, 3)).copy()
+    test = ref * (1.0 + 0.1 * rng.normal(size=(90, 160, 1)))
+    e = relative_error(test, ref)
+    lum = ref[..., 0]
+    np.testing.assert_allclose(e, (test[..., 0] - lum) / (lum + 0.05 * np.median(lum)), rtol=1e-9)
+    a = structured_noise(test, ref)
+    assert a == pytest.approx(structured_noise(test * 1e-3, ref * 1e-3), rel=1e-9)
+    assert 0.8 <= a <= 1.25  # multiplicative white noise
+
+
+def test_flip_midgrey_is_exposure_invariant():
+    from stb_hydra.metrics import flip_hdr_midgrey
+
+    rng = np.random.default_rng(4)
+    ref = rng.uniform(0.1, 1.0, (48, 64, 3))
+    test = ref * (1.0 + 0.2 * rng.normal(size=ref.shape))
+    f = flip_hdr_midgrey(test, ref)
+    assert f > 0.01
+    assert flip_hdr_midgrey(test * 1000.0, ref * 1000.0) == pytest.approx(f, rel=1e-4)
+    assert flip_hdr_midgrey(ref, ref) == 0.0

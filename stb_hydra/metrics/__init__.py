@@ -1,4 +1,5 @@
-"""Image-quality metrics (relMSE, FLIP, temporal instability) of the trade-off study."""
+"""Image-quality metrics of the trade-off study: relMSE, FLIP, temporal instability,
+and what a person sees of noise (structured noise, HDR-FLIP at mid grey)."""
 
 from .image import (
     RELMSE_EPS,
@@ -12,6 +13,12 @@ from .image import (
     temporal_excess,
     temporal_instability,
 )
+from .structure import (
+    flip_hdr_midgrey,
+    relative_error,
+    spectral_structure,
+    structured_noise,
+)
 
 __all__ = [
     "RELMSE_EPS",
@@ -19,9 +26,13 @@ __all__ = [
     "display_referred",
     "dropped_summary",
     "flip_hdr",
+    "flip_hdr_midgrey",
     "flip_ldr",
+    "relative_error",
     "relmse",
     "relmse_map",
+    "spectral_structure",
+    "structured_noise",
     "temporal_excess",
     "temporal_instability",
 ]
