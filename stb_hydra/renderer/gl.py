@@ -3,24 +3,31 @@
 * :func:`get_context` -- one moderngl context per process: standalone EGL by
   default (Mesa llvmpipe on CPU machines, NVIDIA EGL on GPU machines), or a
   window's context handed in with :func:`use_context`.
-* :class:`ShaderLibrary` -- loads ``stb_hydra/shaders/<name>.{vert,frag,comp}``,
-  expands ``#include "common/x.glsl"`` (each file once), prepends ``#version``,
-  the limits header and the feature ``#define``s, and caches programs per
-  (sources, defines): only the variants a scene needs are ever compiled.
+* :class:`ShaderLibrary` -- loads ``shaders/<name>.{vert,frag,comp}`` (the package
+  ``stb_hydra.shaders``, read with :mod:`importlib.resources`: the same in a wheel and
+  in an editable install), expands ``#include "common/x.glsl"`` (each file once),
+  prepends ``#version``, the limits header and the feature ``#define``s, and caches
+  programs per (sources, defines): only the variants a scene needs are ever compiled.
 """
 
 from __future__ import annotations
 
+import posixpath
 import re
 import threading
 from dataclasses import dataclass
-from pathlib import Path
+from importlib import resources
+from typing import TYPE_CHECKING
 
 import moderngl
 
 from .. import limits
 
-SHADER_DIR = Path(__file__).resolve().parent.parent / "shaders"
+if TYPE_CHECKING:
+    from importlib.resources.abc import Traversable
+
+#: The package holding the GLSL (the checkout's top-level ``shaders/``).
+SHADER_PACKAGE = "stb_hydra.shaders"
 GLSL_VERSION = "#version 430 core"
 
 _lock = threading.Lock()
@@ -88,21 +95,35 @@ def limit_defines() -> dict[str, object]:
     }
 
 
+def shader_root() -> Traversable:
+    """The directory of the shader sources, wherever the package is installed."""
+    return resources.files(SHADER_PACKAGE)
+
+
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
-def _expand(path: Path, seen: set[Path]) -> str:
-    if path in seen:
-        return f"// (already included: {path.name})\n"
-    seen.add(path)
+def shader_source(name: str) -> str:
+    """Text of ``shaders/<name>`` (``/``-separated, relative to the shader root)."""
+    node = shader_root()
+    for part in name.split("/"):
+        node = node.joinpath(part)
     try:
-        text = path.read_text()
+        return node.read_text(encoding="utf-8")
     except OSError as exc:
-        raise GLError(f"shader include not found: {path}") from exc
+        raise GLError(f"shader source not found: {SHADER_PACKAGE}/{name}") from exc
+
+
+def _expand(name: str, seen: set[str]) -> str:
+    name = posixpath.normpath(name)
+    if name in seen:
+        return f"// (already included: {name})\n"
+    seen.add(name)
+    text = shader_source(name)
 
     def sub(m: re.Match) -> str:
-        inc = (SHADER_DIR / m.group(1)).resolve()
-        return f"// begin {m.group(1)}\n{_expand(inc, seen)}\n// end {m.group(1)}"
+        inc = m.group(1)
+        return f"// begin {inc}\n{_expand(inc, seen)}\n// end {inc}"
 
     return _INCLUDE.sub(sub, text)
 
@@ -114,7 +135,7 @@ def preprocess(name: str, defines: dict[str, object] | None = None) -> str:
         if v is False or v is None:
             continue
         head.append(f"#define {k} {1 if v is True else v}")
-    body = _expand((SHADER_DIR / name).resolve(), set())
+    body = _expand(name, set())
     return "\n".join(head) + "\n#line 1\n" + body
 
 
