@@ -4,7 +4,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform sampler2D u_src;          // level k-1 (r32f depth for k = 1, rg32f otherwise)
 uniform int u_from_depth;         // 1: u_src is the G-buffer depth
-layout(rg32f, binding = 0) writeonly uniform image2D u_dst;
+layout(rg32f, binding = IMAGE_UNIT_HIZ_DST) writeonly uniform image2D u_dst;
 
 const float HUGE_DEPTH = 3.0e38;
 

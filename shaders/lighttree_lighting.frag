@@ -16,9 +16,9 @@ struct Node {
     uint first_light;
     uint bits;
 };
-layout(std430, binding = 2) readonly buffer CellHeaders { uvec2 cell_header[]; };  // first node, nodes
-layout(std430, binding = 3) readonly buffer TreeNodes { Node nodes[]; };
-layout(std430, binding = 4) readonly buffer TreeLights { uint tree_lights[]; };
+layout(std430, binding = SSBO_CELL_HEADERS) readonly buffer CellHeaders { uvec2 cell_header[]; };  // first node, nodes
+layout(std430, binding = SSBO_CELL_LISTS) readonly buffer TreeNodes { Node nodes[]; };
+layout(std430, binding = SSBO_CELL_EXTRA) readonly buffer TreeLights { uint tree_lights[]; };
 uniform ivec2 u_grid;
 uniform int u_tile_px;
 uniform vec4 u_slices;     // near_split, far, slices, slices / ln(far / near_split)

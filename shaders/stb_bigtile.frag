@@ -10,7 +10,7 @@
 #include "common/packing.glsl"
 #include "common/lights.glsl"
 
-uniform sampler2D u_hiz;        // rg32f min/max depth, one texel per big tile
+layout(binding = TEX_UNIT_HIZ) uniform sampler2D u_hiz;  // rg32f min/max depth, one texel per big tile
 uniform ivec2 u_block;          // slot block per big tile (K = x * y)
 uniform int u_big_px;           // big tile size (px)
 uniform int u_target_mode;      // 0: segment (the talk's), 1: uniform (comparison)
@@ -51,7 +51,7 @@ void main() {
     vec3 B = world_pos_from_depth(c, mm.y);
     uint tile_index = uint(tile.y) * 4096u + uint(tile.x);
     Rng off = rng_init(tile_index, u_counts.y);
-    Rng acc = rng_init(tile_index * 64u + slot + 0x10000000u, u_counts.y ^ 0x5bd1e995u);
+    Rng acc = rng_init(tile_index * uint(LIM_BIG_TILE_SLOTS_MAX) + slot + 0x10000000u, u_counts.y ^ 0x5bd1e995u);
     float total = 0.0, sel_p = 0.0;
     uint sel = LIM_EMPTY_LIGHT_INDEX;
     float count = 0.0;

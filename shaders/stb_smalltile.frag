@@ -75,9 +75,9 @@ void main() {
     // -- SRS over the big tile's K samples into STB_N streams --
     int K = u_block.x * u_block.y;
     // Targets of all K candidates first, so the defensive mixture can use their mean.
-    float ph_all[64];
-    float wbt_all[64];
-    uint li_all[64];
+    float ph_all[LIM_BIG_TILE_SLOTS_MAX];
+    float wbt_all[LIM_BIG_TILE_SLOTS_MAX];
+    uint li_all[LIM_BIG_TILE_SLOTS_MAX];
     float ph_sum = 0.0;
     float ph_n = 0.0;
     for (int slot = 0; slot < K; ++slot) {

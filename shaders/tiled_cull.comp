@@ -13,9 +13,9 @@ layout(local_size_x = CULL_GROUP_SIZE) in;
 #include "common/frame.glsl"
 #include "common/lights.glsl"
 
-layout(std430, binding = 2) writeonly buffer CellHeaders { uvec2 cell_header[]; };
-layout(std430, binding = 3) writeonly buffer CellLights { uint cell_lights[]; };
-layout(std430, binding = 4) buffer CullStats {
+layout(std430, binding = SSBO_CELL_HEADERS) writeonly buffer CellHeaders { uvec2 cell_header[]; };
+layout(std430, binding = SSBO_CELL_LISTS) writeonly buffer CellLights { uint cell_lights[]; };
+layout(std430, binding = SSBO_CELL_EXTRA) buffer CullStats {
     uint stat_dropped;      // light-cell pairs past the cap
     uint stat_cells_over;   // cells whose list overflowed
     uint stat_max_total;    // largest uncapped list
@@ -33,7 +33,7 @@ uniform float u_depth_margin;  // LIM: depth-relative widening
 #ifdef CLUSTERED
 uniform vec4 u_slices;         // near_split, far, slices, slices / ln(far / near_split)
 #else
-uniform sampler2D u_hiz;       // rg32f (min, max) depth, one texel per tile
+layout(binding = TEX_UNIT_HIZ) uniform sampler2D u_hiz;  // rg32f (min, max) depth, one texel per tile
 #endif
 
 shared uint s_mask[2];

@@ -9,8 +9,8 @@
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
 
-layout(std430, binding = 2) readonly buffer CellHeaders { uvec2 cell_header[]; };
-layout(std430, binding = 3) readonly buffer CellLights { uint cell_lights[]; };
+layout(std430, binding = SSBO_CELL_HEADERS) readonly buffer CellHeaders { uvec2 cell_header[]; };
+layout(std430, binding = SSBO_CELL_LISTS) readonly buffer CellLights { uint cell_lights[]; };
 uniform ivec2 u_grid;      // tiles along x, y
 uniform int u_tile_px;     // tile side (px)
 #ifdef CLUSTERED

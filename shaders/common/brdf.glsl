@@ -1,9 +1,8 @@
 // Lambert + GGX microfacet BRDF (Smith height-correlated visibility, Schlick Fresnel).
-// Shared by every lighting method so images compare pixel for pixel.
+// Shared by every lighting method so images compare pixel for pixel. PI and
+// LUMINANCE_REC709 come from the generated common/constants.glsl (shader_constants.py).
 #ifndef STB_BRDF_GLSL
 #define STB_BRDF_GLSL
-const float PI = 3.14159265358979;
-
 struct Surface {
     vec3 P;        // world position (m)
     vec3 N;        // unit normal (world)
@@ -57,7 +56,7 @@ vec3 env_brdf_approx(vec3 f0, float roughness, float NoV) {
 }
 
 // Luminance (Rec.709).
-float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
+float luminance(vec3 c) { return dot(c, LUMINANCE_REC709); }
 
 // Finite, non-negative, under fp16 max: what every lighting pass writes.
 vec3 sanitize_radiance(vec3 c) {

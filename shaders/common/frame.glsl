@@ -1,9 +1,9 @@
-// Per-frame constants (std140 UBO, binding 0), written once per frame by
+// Per-frame constants (std140 UBO, binding UBO_FRAME), written once per frame by
 // render/frame_data.py. Render frame: Y up, metres. Matrices are uploaded from
 // row-vector numpy matrices, so in GLSL they apply as `M * v`.
 #ifndef STB_FRAME_GLSL
 #define STB_FRAME_GLSL
-layout(std140, binding = 0) uniform FrameBlock {
+layout(std140, binding = UBO_FRAME) uniform FrameBlock {
     mat4 u_view;            // world -> view
     mat4 u_proj;            // view -> clip
     mat4 u_view_proj;       // world -> clip
@@ -21,7 +21,7 @@ layout(std140, binding = 0) uniform FrameBlock {
     vec4 u_ambient;         // rgb dome radiance (nits), w number of extra distant lights
     vec4 u_dist_dir[3];     // extra (unshadowed) distant lights: xyz towards the light, w diffuse mult
     vec4 u_dist_illum[3];   // rgb illuminance (lux), w specular mult
-    uvec4 u_counts;         // x FoV light count, y seed, z big tiles x, w big tiles y
+    uvec4 u_counts;         // x FoV light count, y seed, z, w big tiles x, y (LIM_BIG_TILE_PX)
 };
 
 // Linear view depth (m, > 0) + pixel -> view-space position.

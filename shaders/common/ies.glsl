@@ -11,17 +11,16 @@ uniform sampler2DArray u_ies;
 // x, y = components of w along the light's +X, +Y. Multiply by the light's IES scale.
 float ies_table(int layer, float angle_scale, float cos_axis, float x, float y) {
     float theta = acos(clamp(cos_axis, -1.0, 1.0));
-    const float PI_ = 3.14159265358979;
     if (angle_scale > 0.0) {
         theta = theta / angle_scale;
     } else if (angle_scale < 0.0) {
-        theta = (theta - PI_) / -angle_scale + PI_;
+        theta = (theta - PI) / -angle_scale + PI;
     }
-    if (theta < 0.0 || theta > PI_) return 0.0;
+    if (theta < 0.0 || theta > PI) return 0.0;
     float phi = atan(y, x);
-    if (phi < 0.0) phi += 2.0 * PI_;
-    float v = (theta / PI_ * float(LIM_IES_THETA - 1) + 0.5) / float(LIM_IES_THETA);
-    float u = phi / (2.0 * PI_) + 0.5 / float(LIM_IES_PHI);
+    if (phi < 0.0) phi += 2.0 * PI;
+    float v = (theta / PI * float(LIM_IES_THETA - 1) + 0.5) / float(LIM_IES_THETA);
+    float u = phi / (2.0 * PI) + 0.5 / float(LIM_IES_PHI);
     return texture(u_ies, vec3(u, v, float(layer))).r;
 }
 #endif

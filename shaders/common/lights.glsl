@@ -1,5 +1,6 @@
-// The packed FoV light buffer (std430 SSBO, binding 0) and the light's emitted
-// intensity towards a direction. Layout written by render/light_buffer.py.
+// The packed FoV light buffer (std430 SSBO, binding SSBO_LIGHTS) and the light's emitted
+// intensity towards a direction. Layout: LIGHT_LAYOUT in renderer/shader_constants.py
+// (the same members in the same order), written by renderer/light_buffer.py.
 #ifndef STB_LIGHTS_GLSL
 #define STB_LIGHTS_GLSL
 #include "common/ies.glsl"
@@ -16,11 +17,7 @@ struct Light {
     vec4 misc;          // x shadow falloff (m), y falloff gamma, z diffuse mult, w specular mult
 };
 
-layout(std430, binding = 0) readonly buffer LightBuffer { Light lights[]; };
-
-const float EMIT_ISOTROPIC = 0.0;
-const float EMIT_COSINE = 1.0;
-const float EMIT_CYLINDER = 2.0;
+layout(std430, binding = SSBO_LIGHTS) readonly buffer LightBuffer { Light lights[]; };
 
 // Smooth fade to exactly 0 over the last (1 - LIM_RANGE_FADE_START) of the range.
 float range_window(float d, float range) {
@@ -36,7 +33,7 @@ float light_shape_scalar(Light L, vec3 w) {
     float c = dot(w, L.axis_emit.xyz);      // cos of the angle off the axis
     float shape = 1.0;
 #ifdef HAS_CONES
-    if (L.cone.y < 3.14159) {
+    if (L.cone.y < CONE_CUTOFF_TEST_RAD) {
         float theta = acos(clamp(c, -1.0, 1.0));
         if (theta > L.cone.y) return 0.0;
         if (L.cone.y > L.cone.z) {

@@ -16,7 +16,7 @@ struct ShadowMap {
     vec4 atlas;       // interior origin x, y (texels), interior side (texels), type (0 spot, 1 omni)
     vec4 params;      // x near (m), y texel angle (rad), z 1 / atlas size, w normal-bias scale
 };
-layout(std430, binding = 1) readonly buffer ShadowBuffer { ShadowMap shadow_maps[]; };
+layout(std430, binding = SSBO_SHADOW_MAPS) readonly buffer ShadowBuffer { ShadowMap shadow_maps[]; };
 uniform sampler2D u_shadow_atlas;   // r16 unorm
 
 // Returns the RGB transmission mix(shadow:color, 1, visibility).

@@ -1,30 +1,35 @@
 // STB tile geometry: big tiles, (interleaved) small tiles of quads, and the
 // quad <-> (small tile, slot) mappings. Interleaved mode: 4 small tiles share a
-// 32x32 px footprint (16x16 quads); the 16x16 inverse LUT gives each quad's
-// (tile 0..3, slot 0..63) and the forward table each (tile, slot)'s quad
+// 32x32 px footprint (INTERLEAVE_FOOTPRINT_PX, 16x16 quads); the 16x16 inverse LUT
+// gives each quad's (tile 0..3, slot 0..63) and the forward table each (tile, slot)'s quad
 // (tools/gen_quad_patterns.py). The footprint grid is shifted by a per-frame
 // offset (even pixels). Plain mode: small tile = S x S px block, slot = quad
 // row-major. Small tile (sx, sy) of footprint F is (2F.x + (t & 1), 2F.y + (t >> 1)).
 #ifndef STB_TILES_GLSL
 #define STB_TILES_GLSL
 
-uniform isampler2D u_quad_lut;      // 16x16 r32i: tile | slot << 4 (interleaved mode)
-uniform isampler2D u_quad_fwd;      // 64x4 r32i: qx | qy << 8, row = tile, column = slot
+uniform isampler2D u_quad_lut;      // 16x16 r32i: tile | slot << QUAD_LUT_SLOT_SHIFT (interleaved)
+uniform isampler2D u_quad_fwd;      // 64x4 r32i: qx | qy << QUAD_FWD_Y_SHIFT, row = tile, column = slot
 uniform ivec2 u_pattern_offset;     // px, even, per frame
 uniform int u_interleave;           // 1: interleaved footprints, 0: plain small tiles
 uniform int u_small_px;             // small tile size in plain mode (px)
 
-int quads_per_side() { return u_interleave == 1 ? 8 : u_small_px / 2; }
+// Interleaved mode: footprint, its small tiles (px) and their quads per side.
+const int IL_FOOT_PX = INTERLEAVE_FOOTPRINT_PX;
+const int IL_SMALL_PX = INTERLEAVE_FOOTPRINT_PX / 2;
+const int IL_QUADS = INTERLEAVE_QUADS_PER_SIDE;
+
+int quads_per_side() { return u_interleave == 1 ? IL_QUADS : u_small_px / 2; }
 
 // Small tile and slot owning pixel px.
 void quad_owner(ivec2 px, out ivec2 small_tile, out int slot) {
     ivec2 p = px + u_pattern_offset;
     if (u_interleave == 1) {
-        ivec2 f = p / 32;
-        ivec2 q = (p - f * 32) / 2;
+        ivec2 f = p / IL_FOOT_PX;
+        ivec2 q = (p - f * IL_FOOT_PX) / 2;
         int v = texelFetch(u_quad_lut, q, 0).r;
-        int t = v & 15;
-        slot = v >> 4;
+        int t = v & ((1 << QUAD_LUT_SLOT_SHIFT) - 1);
+        slot = v >> QUAD_LUT_SLOT_SHIFT;
         small_tile = 2 * f + ivec2(t & 1, t >> 1);
     } else {
         small_tile = p / u_small_px;
@@ -39,8 +44,8 @@ ivec2 quad_pixel(ivec2 small_tile, int slot) {
         ivec2 f = small_tile / 2;
         int t = (small_tile.x & 1) | ((small_tile.y & 1) << 1);
         int v = texelFetch(u_quad_fwd, ivec2(slot, t), 0).r;
-        ivec2 q = ivec2(v & 255, v >> 8);
-        return f * 32 + q * 2 - u_pattern_offset;
+        ivec2 q = ivec2(v & ((1 << QUAD_FWD_Y_SHIFT) - 1), v >> QUAD_FWD_Y_SHIFT);
+        return f * IL_FOOT_PX + q * 2 - u_pattern_offset;
     }
     int s = u_small_px / 2;
     ivec2 q = ivec2(slot % s, slot / s);
@@ -50,13 +55,15 @@ ivec2 quad_pixel(ivec2 small_tile, int slot) {
 // Nominal centre of a small tile (px).
 vec2 small_tile_centre(ivec2 small_tile) {
     if (u_interleave == 1) {
-        return vec2(small_tile / 2) * 32.0 + vec2(small_tile & 1) * 16.0 + 8.0
-               - vec2(u_pattern_offset);
+        return vec2(small_tile / 2) * float(IL_FOOT_PX) + vec2(small_tile & 1) * float(IL_SMALL_PX)
+               + 0.5 * float(IL_SMALL_PX) - vec2(u_pattern_offset);
     }
     return (vec2(small_tile) + 0.5) * float(u_small_px) - vec2(u_pattern_offset);
 }
 
-int quads_per_tile() { return u_interleave == 1 ? 64 : (u_small_px / 2) * (u_small_px / 2); }
+int quads_per_tile() {
+    return u_interleave == 1 ? IL_QUADS * IL_QUADS : (u_small_px / 2) * (u_small_px / 2);
+}
 
 // Texel of the shadow-term block of (small tile, slot).
 ivec2 term_texel(ivec2 small_tile, int slot) {

@@ -6,8 +6,9 @@
 * :class:`ShaderLibrary` -- loads ``shaders/<name>.{vert,frag,comp}`` (the package
   ``stb_hydra.shaders``, read with :mod:`importlib.resources`: the same in a wheel and
   in an editable install), expands ``#include "common/x.glsl"`` (each file once),
-  prepends ``#version``, the limits header and the feature ``#define``s, and caches
-  programs per (sources, defines): only the variants a scene needs are ever compiled.
+  prepends ``#version``, the feature ``#define``s and the generated constants
+  (``common/constants.glsl``, from :mod:`.shader_constants`), and caches programs per
+  (sources, defines): only the variants a scene needs are ever compiled.
 """
 
 from __future__ import annotations
@@ -21,13 +22,15 @@ from typing import TYPE_CHECKING
 
 import moderngl
 
-from .. import limits
+from .shader_constants import GLSL_CONSTANTS, constants_glsl
 
 if TYPE_CHECKING:
     from importlib.resources.abc import Traversable
 
 #: The package holding the GLSL (the checkout's top-level ``shaders/``).
 SHADER_PACKAGE = "stb_hydra.shaders"
+#: Include generated from :mod:`.shader_constants`; no file on disk, in every shader.
+CONSTANTS_INCLUDE = "common/constants.glsl"
 GLSL_VERSION = "#version 430 core"
 
 _lock = threading.Lock()
@@ -80,19 +83,8 @@ def renderer_info(ctx: moderngl.Context) -> str:
 
 
 def limit_defines() -> dict[str, object]:
-    """Limits every shader sees (``LIM_<NAME>``)."""
-    return {
-        "LIM_HALF_MAX": f"{limits.HALF_MAX:.1f}",
-        "LIM_MIN_LIGHT_DISTANCE": f"{limits.MIN_LIGHT_DISTANCE_M:.6f}",
-        "LIM_RANGE_FADE_START": f"{limits.RANGE_FADE_START:.6f}",
-        "LIM_IES_THETA": limits.IES_TABLE_THETA,
-        "LIM_IES_PHI": limits.IES_TABLE_PHI,
-        "LIM_SAMPLE_INDEX_BITS": limits.SAMPLE_INDEX_BITS,
-        "LIM_EMPTY_LIGHT_INDEX": f"{limits.EMPTY_LIGHT_INDEX}u",
-        "LIM_WEIGHT_LOG2_MIN": f"{limits.SAMPLE_WEIGHT_LOG2_MIN:.1f}",
-        "LIM_WEIGHT_STEPS": f"{float(limits.SAMPLE_WEIGHT_STEPS_PER_OCTAVE):.1f}",
-        "LIM_PDF_EPSILON": f"{limits.PDF_EPSILON:.3e}",
-    }
+    """Limits every shader sees (``LIM_<NAME>``): part of :data:`GLSL_CONSTANTS`."""
+    return {k: v for k, v in GLSL_CONSTANTS.items() if k.startswith("LIM_")}
 
 
 def shader_root() -> Traversable:
@@ -104,7 +96,10 @@ _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
 def shader_source(name: str) -> str:
-    """Text of ``shaders/<name>`` (``/``-separated, relative to the shader root)."""
+    """Text of ``shaders/<name>`` (``/``-separated, relative to the shader root);
+    :data:`CONSTANTS_INCLUDE` is generated."""
+    if name == CONSTANTS_INCLUDE:
+        return constants_glsl()
     node = shader_root()
     for part in name.split("/"):
         node = node.joinpath(part)
@@ -131,11 +126,13 @@ def _expand(name: str, seen: set[str]) -> str:
 def preprocess(name: str, defines: dict[str, object] | None = None) -> str:
     """Full GLSL source of ``shaders/<name>`` with includes expanded."""
     head = [GLSL_VERSION]
-    for k, v in {**limit_defines(), **(defines or {})}.items():
+    for k, v in (defines or {}).items():
         if v is False or v is None:
             continue
         head.append(f"#define {k} {1 if v is True else v}")
-    body = _expand(name, set())
+    seen: set[str] = set()
+    head.append(_expand(CONSTANTS_INCLUDE, seen))
+    body = _expand(name, seen)
     return "\n".join(head) + "\n#line 1\n" + body
 
 

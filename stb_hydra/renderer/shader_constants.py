@@ -1,0 +1,180 @@
+"""Constants shared by the Python renderer and the GLSL: one source of truth.
+
+Every name in :data:`GLSL_CONSTANTS` is a ``#define`` of the virtual include
+``common/constants.glsl``, which the shader loader (:mod:`stb_hydra.renderer.gl`)
+generates from this module and puts at the top of every shader. Python code uses the
+module-level names below, or the owners this module reads (:mod:`stb_hydra.limits`,
+:mod:`stb_hydra.scene.prims`, :mod:`stb_hydra.color`); shaders use the ``#define`` of
+the same name. Change a value in Python, never a literal in a shader or a module.
+
+* ``LIM_*``: the limits of :mod:`stb_hydra.limits` the shaders need.
+* ``TEX_UNIT_*``, ``UBO_*``, ``SSBO_*``, ``IMAGE_UNIT_*``: fixed GL binding points,
+  declared with ``layout(binding = ...)`` in GLSL and bound to the same number here.
+* ``LIGHT_COL_*``: float columns of one packed light record (``struct Light`` in
+  ``shaders/common/lights.glsl``, laid out by :data:`LIGHT_LAYOUT`).
+* The rest: codes and sentinels that both sides write or test (``EMIT_*`` and
+  ``CONE_CUTOFF_TEST_RAD`` of :mod:`stb_hydra.scene.prims`, ``LUMINANCE_REC709`` of
+  :mod:`stb_hydra.color`, ``PI``).
+"""
+
+from __future__ import annotations
+
+import math
+
+from .. import limits
+from ..color import LUMINANCE_REC709
+from ..scene import prims
+
+# --- GL binding points ------------------------------------------------------------------
+
+#: Uniform block of the per-frame constants (``FrameBlock``, common/frame.glsl).
+UBO_FRAME = 0
+#: Packed FoV lights (``LightBuffer``, common/lights.glsl).
+SSBO_LIGHTS = 0
+#: Shadow-map records of the atlas (``ShadowBuffer``, common/shadow.glsl).
+SSBO_SHADOW_MAPS = 1
+#: Per-cell buffers of the list-based methods (tiled, clustered, lighttree): cell
+#: headers; light lists (tiled, clustered) or tree nodes (lighttree); cull statistics
+#: (tiled, clustered) or the tree's light indices (lighttree).
+SSBO_CELL_HEADERS = 2
+SSBO_CELL_LISTS = 3
+SSBO_CELL_EXTRA = 4
+#: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
+IMAGE_UNIT_HIZ_DST = 0
+#: Texture unit of the min/max depth pyramid level read by the big-tile pass
+#: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
+#: ``LightingMethod.bind_common`` hands out from 0 (at most 8: G-buffer, IES, atlas, sun).
+TEX_UNIT_HIZ = 12
+
+# --- Packed light record (struct Light, common/lights.glsl) ---------------------------
+
+#: The std430 light record, vec4 by vec4: (GLSL member, names of its 4 float columns).
+#: A name repeated over adjacent columns is a vector (xyz). The GLSL struct declares
+#: the same members in the same order (checked by tests/test_shader_constants.py).
+LIGHT_LAYOUT: tuple[tuple[str, tuple[str, str, str, str]], ...] = (
+    ("pos_range", ("position", "position", "position", "range")),
+    ("axis_emit", ("axis", "axis", "axis", "emission")),
+    ("tangent_type", ("tangent", "tangent", "tangent", "type")),
+    ("intensity", ("intensity", "intensity", "intensity", "flux")),
+    ("cone", ("cos_cutoff", "cutoff", "cone_start", "focus")),
+    ("tint_ies", ("focus_tint", "focus_tint", "focus_tint", "ies_layer")),
+    ("ies_shadow", ("ies_scale", "ies_angle_scale", "shadow_map", "shadow_flags")),
+    ("shadow_color", ("shadow_color", "shadow_color", "shadow_color", "shadow_distance")),
+    ("misc", ("shadow_falloff", "shadow_falloff_gamma", "diffuse", "specular")),
+)
+
+
+def _light_columns() -> dict[str, int]:
+    cols: dict[str, int] = {}
+    for i, (_, names) in enumerate(LIGHT_LAYOUT):
+        for j, name in enumerate(names):
+            cols.setdefault(name, 4 * i + j)
+    return cols
+
+
+#: First float column of each light-record field (a vector spans 3 columns).
+LIGHT_COLUMNS: dict[str, int] = _light_columns()
+LIGHT_RECORD_VEC4S = len(LIGHT_LAYOUT)  # 9
+LIGHT_STRIDE_FLOATS = 4 * LIGHT_RECORD_VEC4S  # 36
+LIGHT_STRIDE_BYTES = 4 * LIGHT_STRIDE_FLOATS  # 144
+
+LIGHT_COL_POSITION = LIGHT_COLUMNS["position"]  # 0:3
+LIGHT_COL_RANGE = LIGHT_COLUMNS["range"]  # 3
+LIGHT_COL_AXIS = LIGHT_COLUMNS["axis"]  # 4:7
+LIGHT_COL_EMISSION = LIGHT_COLUMNS["emission"]  # 7
+LIGHT_COL_TANGENT = LIGHT_COLUMNS["tangent"]  # 8:11
+LIGHT_COL_TYPE = LIGHT_COLUMNS["type"]  # 11
+LIGHT_COL_INTENSITY = LIGHT_COLUMNS["intensity"]  # 12:15
+LIGHT_COL_FLUX = LIGHT_COLUMNS["flux"]  # 15
+LIGHT_COL_COS_CUTOFF = LIGHT_COLUMNS["cos_cutoff"]  # 16
+LIGHT_COL_CUTOFF = LIGHT_COLUMNS["cutoff"]  # 17
+LIGHT_COL_CONE_START = LIGHT_COLUMNS["cone_start"]  # 18
+LIGHT_COL_FOCUS = LIGHT_COLUMNS["focus"]  # 19
+LIGHT_COL_FOCUS_TINT = LIGHT_COLUMNS["focus_tint"]  # 20:23
+LIGHT_COL_IES_LAYER = LIGHT_COLUMNS["ies_layer"]  # 23
+LIGHT_COL_IES_SCALE = LIGHT_COLUMNS["ies_scale"]  # 24
+LIGHT_COL_IES_ANGLE_SCALE = LIGHT_COLUMNS["ies_angle_scale"]  # 25
+LIGHT_COL_SHADOW_MAP = LIGHT_COLUMNS["shadow_map"]  # 26
+LIGHT_COL_SHADOW_FLAGS = LIGHT_COLUMNS["shadow_flags"]  # 27
+LIGHT_COL_SHADOW_COLOR = LIGHT_COLUMNS["shadow_color"]  # 28:31
+LIGHT_COL_SHADOW_DISTANCE = LIGHT_COLUMNS["shadow_distance"]  # 31
+LIGHT_COL_SHADOW_FALLOFF = LIGHT_COLUMNS["shadow_falloff"]  # 32
+LIGHT_COL_SHADOW_FALLOFF_GAMMA = LIGHT_COLUMNS["shadow_falloff_gamma"]  # 33
+LIGHT_COL_DIFFUSE = LIGHT_COLUMNS["diffuse"]  # 34
+LIGHT_COL_SPECULAR = LIGHT_COLUMNS["specular"]  # 35
+
+#: Index columns (IES layer, shadow map) holding "none".
+LIGHT_INDEX_NONE = -1.0
+
+# --- STB interleaved small tiles (common/tiles.glsl, data/quad_patterns.json) ---------------
+
+#: Interleaved mode: 2 x 2 small tiles of SMALL_TILE_PX share one square footprint.
+INTERLEAVE_FOOTPRINT_PX = 2 * limits.SMALL_TILE_PX  # 32
+#: Quads along a small tile's side (8), i.e. 64 quads = slots per small tile.
+INTERLEAVE_QUADS_PER_SIDE = limits.SMALL_TILE_PX // limits.QUAD_PX  # 8
+#: Quad LUT texel (16 x 16 r32i, one per quad of a footprint): tile | slot << 4.
+QUAD_LUT_SLOT_SHIFT = 4
+#: Forward LUT texel (64 x 4 r32i, one per (slot, tile)): qx | qy << 8.
+QUAD_FWD_Y_SHIFT = 8
+
+
+# --- The GLSL side ------------------------------------------------------------------------
+
+
+def _vec3(v) -> str:
+    return "vec3(" + ", ".join(repr(float(x)) for x in v) + ")"
+
+
+def _glsl_constants() -> dict[str, str]:
+    return {
+        # limits (formats kept as they were: the compiled shaders must not change)
+        "LIM_HALF_MAX": f"{limits.HALF_MAX:.1f}",
+        "LIM_MIN_LIGHT_DISTANCE": f"{limits.MIN_LIGHT_DISTANCE_M:.6f}",
+        "LIM_RANGE_FADE_START": f"{limits.RANGE_FADE_START:.6f}",
+        "LIM_IES_THETA": str(limits.IES_TABLE_THETA),
+        "LIM_IES_PHI": str(limits.IES_TABLE_PHI),
+        "LIM_SAMPLE_INDEX_BITS": str(limits.SAMPLE_INDEX_BITS),
+        "LIM_EMPTY_LIGHT_INDEX": f"{limits.EMPTY_LIGHT_INDEX}u",
+        "LIM_WEIGHT_LOG2_MIN": f"{limits.SAMPLE_WEIGHT_LOG2_MIN:.1f}",
+        "LIM_WEIGHT_STEPS": f"{float(limits.SAMPLE_WEIGHT_STEPS_PER_OCTAVE):.1f}",
+        "LIM_PDF_EPSILON": f"{limits.PDF_EPSILON:.3e}",
+        "LIM_BIG_TILE_PX": str(limits.BIG_TILE_PX),
+        "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
+        # binding points
+        "UBO_FRAME": str(UBO_FRAME),
+        "SSBO_LIGHTS": str(SSBO_LIGHTS),
+        "SSBO_SHADOW_MAPS": str(SSBO_SHADOW_MAPS),
+        "SSBO_CELL_HEADERS": str(SSBO_CELL_HEADERS),
+        "SSBO_CELL_LISTS": str(SSBO_CELL_LISTS),
+        "SSBO_CELL_EXTRA": str(SSBO_CELL_EXTRA),
+        "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
+        "TEX_UNIT_HIZ": str(TEX_UNIT_HIZ),
+        # codes and sentinels
+        "PI": repr(math.pi),
+        "LUMINANCE_REC709": _vec3(LUMINANCE_REC709),
+        "EMIT_ISOTROPIC": repr(float(prims.EMIT_ISOTROPIC)),
+        "EMIT_COSINE": repr(float(prims.EMIT_COSINE)),
+        "EMIT_CYLINDER": repr(float(prims.EMIT_CYLINDER)),
+        "CONE_CUTOFF_TEST_RAD": repr(prims.CONE_CUTOFF_TEST_RAD),
+        "INTERLEAVE_FOOTPRINT_PX": str(INTERLEAVE_FOOTPRINT_PX),
+        "INTERLEAVE_QUADS_PER_SIDE": str(INTERLEAVE_QUADS_PER_SIDE),
+        "QUAD_LUT_SLOT_SHIFT": str(QUAD_LUT_SLOT_SHIFT),
+        "QUAD_FWD_Y_SHIFT": str(QUAD_FWD_Y_SHIFT),
+    }
+
+
+#: GLSL name -> GLSL source text of its value (the ``#define`` body).
+GLSL_CONSTANTS: dict[str, str] = _glsl_constants()
+
+
+def constants_glsl() -> str:
+    """Source of the virtual include ``common/constants.glsl``."""
+    lines = [
+        "// Generated from stb_hydra/renderer/shader_constants.py (GLSL_CONSTANTS) and",
+        "// stb_hydra/limits.py by the shader loader: change values there, not here.",
+        "#ifndef STB_CONSTANTS_GLSL",
+        "#define STB_CONSTANTS_GLSL",
+    ]
+    lines += [f"#define {k} {v}" for k, v in GLSL_CONSTANTS.items()]
+    lines.append("#endif")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,111 @@
+"""Constants shared by Python and GLSL (``stb_hydra/renderer/shader_constants.py``):
+every shader gets them from the generated ``common/constants.glsl``, the GLSL keeps
+no copy of their literals, and the light record's struct matches the Python layout."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stb_hydra.renderer import shader_constants as sc
+from stb_hydra.renderer.gl import (
+    CONSTANTS_INCLUDE,
+    ShaderLibrary,
+    preprocess,
+    shader_root,
+    shader_source,
+)
+
+SHADERS = Path(str(shader_root()))
+STAGES = sorted(p.name for p in SHADERS.iterdir() if p.suffix in (".vert", ".frag", ".comp"))
+SOURCES = sorted(p.relative_to(SHADERS).as_posix() for p in SHADERS.rglob("*")
+                 if p.suffix in (".vert", ".frag", ".comp", ".glsl"))
+
+
+def _code(text: str) -> str:
+    """GLSL without comments."""
+    text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)
+    return re.sub(r"//[^\n]*", "", text)
+
+
+def test_every_shader_starts_with_the_generated_constants():
+    gen = shader_source(CONSTANTS_INCLUDE)
+    assert not (SHADERS / CONSTANTS_INCLUDE).exists(), "constants.glsl is generated, not a file"
+    for name, value in sc.GLSL_CONSTANTS.items():
+        assert f"#define {name} {value}\n" in gen
+    for stage in STAGES:
+        src = preprocess(stage, {"STB_N": 1})
+        assert src.startswith("#version 430 core\n")
+        assert src.count("#define STB_CONSTANTS_GLSL") == 1, stage
+        assert src.index("#define STB_CONSTANTS_GLSL") < src.index("#line 1")
+
+
+def test_constants_are_not_redefined_in_glsl():
+    for rel in SOURCES:
+        code = _code(shader_source(rel))
+        for name in sc.GLSL_CONSTANTS:
+            assert not re.search(rf"(#define|const\s+\w+)\s+{name}\b", code), (rel, name)
+
+
+@pytest.mark.parametrize(
+    ("pattern", "use"),
+    [
+        (r"\bbinding\s*=\s*\d", "UBO_*/SSBO_*/TEX_UNIT_*/IMAGE_UNIT_* binding constants"),
+        (r"0\.2126|0\.7152|0\.0722", "LUMINANCE_REC709"),
+        (r"3\.14159", "PI / CONE_CUTOFF_TEST_RAD"),
+    ],
+)
+def test_glsl_has_no_copies_of_shared_literals(pattern: str, use: str):
+    hits = [rel for rel in SOURCES if re.search(pattern, _code(shader_source(rel)))]
+    assert not hits, f"{hits}: use {use} (stb_hydra/renderer/shader_constants.py)"
+
+
+def test_light_struct_matches_the_python_layout():
+    code = _code(shader_source("common/lights.glsl"))
+    body = re.search(r"struct\s+Light\s*\{(.*?)\};", code, flags=re.S).group(1)
+    members = re.findall(r"(\w+)\s+(\w+)\s*;", body)
+    assert members == [("vec4", m) for m, _ in sc.LIGHT_LAYOUT]
+    assert sc.LIGHT_STRIDE_FLOATS == 36 and sc.LIGHT_STRIDE_BYTES == 144
+    # a few columns the Python side addresses by number today
+    assert sc.LIGHT_COL_RANGE == 3
+    assert sc.LIGHT_COL_FLUX == 15
+    assert sc.LIGHT_COL_CUTOFF == 17
+    assert sc.LIGHT_COL_SHADOW_MAP == 26
+    assert sc.LIGHT_COL_SPECULAR == 35
+    assert sorted(sc.LIGHT_COLUMNS.values()) == sorted(set(sc.LIGHT_COLUMNS.values()))
+
+
+def test_codes_agree_with_their_python_owners():
+    from stb_hydra import limits
+    from stb_hydra.scene import prims
+
+    assert float(sc.GLSL_CONSTANTS["EMIT_COSINE"]) == prims.EMIT_COSINE
+    assert float(sc.GLSL_CONSTANTS["EMIT_CYLINDER"]) == prims.EMIT_CYLINDER
+    # a light without a cone fails the GLSL cone test once stored as float32
+    assert np.float32(prims.NO_CONE_CUTOFF_RAD) >= np.float32(
+        float(sc.GLSL_CONSTANTS["CONE_CUTOFF_TEST_RAD"])
+    )
+    assert sc.INTERLEAVE_FOOTPRINT_PX == 2 * limits.SMALL_TILE_PX
+    assert int(sc.GLSL_CONSTANTS["LIM_BIG_TILE_SLOTS_MAX"]) == max(limits.BIG_TILE_SLOTS_ALLOWED)
+
+
+#: Every optional feature on: each #ifdef path that uses a constant gets compiled.
+ALL_FEATURES = {
+    "HAS_SUN": True, "HAS_SUN_SHADOW": True, "HAS_AMBIENT": True, "HAS_IES": True,
+    "HAS_CONES": True, "HAS_SHADOWS": True, "STOCHASTIC_PCF": True, "LOCAL_LIGHTS": True,
+    "STB_N": 4, "STB_PIXEL_TERMS": True, "CULL_GROUP_SIZE": 64,
+}
+_VERTEX_OF = {"gbuffer.frag": "gbuffer.vert", "depth_only.frag": "depth_only.vert"}
+
+
+@pytest.mark.gl
+def test_every_shader_compiles_with_every_feature(gl_ctx):
+    lib = ShaderLibrary(gl_ctx)
+    for stage in STAGES:
+        if stage.endswith(".comp"):
+            lib.compute(stage, ALL_FEATURES)
+        elif stage.endswith(".frag"):
+            lib.program(_VERTEX_OF.get(stage, "fullscreen.vert"), stage, ALL_FEATURES)
