@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..scene.prims import CameraPrim
 from ..shadows.capture import look_at, perspective
@@ -49,7 +50,9 @@ class ViewSetup:
         return planes / np.maximum(n, 1e-30)
 
 
-def orthographic(half_w: float, half_h: float, off_x: float, off_y: float, near: float, far: float):
+def orthographic(
+    half_w: float, half_h: float, off_x: float, off_y: float, near: float, far: float
+) -> np.ndarray:
     m = np.zeros((4, 4))
     m[0, 0] = 1.0 / half_w
     m[1, 1] = 1.0 / half_h
@@ -92,7 +95,7 @@ def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float =
         tan_half = (tx, ty)
         offset = (ox, oy)
     fwd = -inv_view[2, :3]
-    fwd = fwd / max(np.linalg.norm(fwd), 1e-30)
+    fwd = fwd / max(float(np.linalg.norm(fwd)), 1e-30)
     return ViewSetup(
         view=view,
         proj=proj,
@@ -111,7 +114,9 @@ def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float =
     )
 
 
-def framing_camera(bounds_min, bounds_max, aspect: float = 16 / 9) -> CameraPrim:
+def framing_camera(
+    bounds_min: npt.ArrayLike, bounds_max: npt.ArrayLike, aspect: float = 16 / 9
+) -> CameraPrim:
     """A free camera framing an axis-aligned box from a raised three-quarter view."""
     lo = np.asarray(bounds_min, dtype=np.float64)
     hi = np.asarray(bounds_max, dtype=np.float64)

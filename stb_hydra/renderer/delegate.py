@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 from ..scene import prims
+from ..scene.locators import DirtyBits
 from ..scene.prims import LightPrim
 from .light_table import LightTable
 from .render_prims import CameraSprim, LightSprim, MaterialSprim, MeshRprim, RenderPrim
@@ -58,6 +59,7 @@ class RenderDelegate:
 
     # -- prim factory (Hydra: CreateRprim / CreateSprim) --
     def create_prim(self, prim_type: str, path: str) -> RenderPrim | None:
+        p: RenderPrim
         if prim_type in prims.LIGHT_TYPES:
             p = LightSprim(self, path, prim_type)
             self.lights[path] = p
@@ -106,4 +108,4 @@ class RenderDelegate:
         """CPU delegate: nothing to upload; clear pending bits."""
         for d in (self.lights, self.meshes, self.cameras, self.materials):
             for p in d.values():
-                p.pending_bits = 0
+                p.pending_bits = DirtyBits.Clean

@@ -18,6 +18,7 @@ the requested AOVs change. Every phase and pass is timed.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,9 @@ from .lighting import method_class
 from .lighting.base import LightingMethod
 from .passes import IMPORTS, PassSet, build_passes
 from .render_index import RenderIndex
+from .tasks.aov_output import AovOutputTask
 from .tasks.base import Pass
+from .tasks.taa import AccumulateTask
 
 
 class RenderError(RuntimeError):
@@ -155,7 +158,7 @@ class Engine:
         w, h = self.buffers.size
         for t in graph.textures():
             size = t.size.resolve(w, h)
-            if size is None:
+            if size is None or t.fmt is None:
                 continue
             comps, dtype = FORMATS[t.fmt]
             if dtype == "depth":
@@ -172,11 +175,11 @@ class Engine:
         return self.graph.passes
 
     @property
-    def accumulate(self):
+    def accumulate(self) -> AccumulateTask:
         return self._set.accumulate
 
     @property
-    def aov_output(self):
+    def aov_output(self) -> AovOutputTask:
         return self._set.aov_output
 
     # -- helpers --
@@ -220,6 +223,7 @@ class Engine:
             if sp is None or sp.camera is None:
                 raise RenderError(f"camera '{self.camera_path}' disappeared from the stage")
             return sp.camera, sp.exposure_scale
+        assert self._free_camera is not None  # _choose_camera made one (no camera_path)
         return self._free_camera, 1.0
 
     def is_empty(self) -> bool:
@@ -258,6 +262,7 @@ class Engine:
         if self.is_empty():
             raise RenderError("the stage has nothing to render (no geometry and no lights)")
         cam, exposure = self.camera()
+        assert s.height is not None  # resolved from the camera's aspect in __init__
         view: ViewSetup = view_setup(cam, s.width, s.height, exposure)
         self.buffers.resize(s.width, s.height)
         self._allocate()
@@ -301,20 +306,21 @@ class Engine:
         """Render ``accumulate`` frames (distinct seeds, same time) and average them."""
         n = max(1, int(accumulate or self.settings.accumulate))
         self.accumulate.reset()
-        frame = None
+        frame: FrameContext | None = None
         self._in_sequence = True
         try:
             for i in range(n):
                 frame = self.render_frame(time, final=i == n - 1)
         finally:
             self._in_sequence = False
+        assert frame is not None  # n >= 1
         return frame
 
     @property
     def aovs(self) -> dict[str, np.ndarray]:
         return self.aov_output.results
 
-    def request_aovs(self, names) -> None:
+    def request_aovs(self, names: Iterable[str]) -> None:
         """AOVs read back on the last frame of each render (``color`` always)."""
         self._requested_aovs = set(names) | {"color"}
         self.aov_output.requested = self._requested_aovs

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
-from typing import TypeVar
+from typing import Literal, TypeVar
 
 import moderngl
 import numpy as np
@@ -87,14 +87,16 @@ class Timings:
 class timed:
     """Context manager adding a task's wall time (optionally after ctx.finish())."""
 
-    def __init__(self, timings: Timings, name: str, ctx: moderngl.Context | None, finish: bool):
+    def __init__(
+        self, timings: Timings, name: str, ctx: moderngl.Context | None, finish: bool
+    ) -> None:
         self.t, self.name, self.ctx, self.finish = timings, name, ctx, finish
 
-    def __enter__(self):
+    def __enter__(self) -> timed:
         self.t0 = time.perf_counter()
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> Literal[False]:
         if self.finish and self.ctx is not None:
             self.ctx.finish()
         self.t.add(self.name, (time.perf_counter() - self.t0) * 1e3)
@@ -117,7 +119,14 @@ class RenderBuffers:
         self.release()
         self.size = (width, height)
 
-    def texture(self, name: str, components: int, dtype: str, size=None, nearest=True):
+    def texture(
+        self,
+        name: str,
+        components: int,
+        dtype: str,
+        size: tuple[int, int] | None = None,
+        nearest: bool = True,
+    ) -> moderngl.Texture:
         size = size or self.size
         t = self.textures.get(name)
         if t is None or t.size != tuple(size) or t.components != components or t.dtype != dtype:
@@ -144,7 +153,9 @@ class RenderBuffers:
             self._drop_fbos_using(name)
         self.textures[name] = tex
 
-    def framebuffer(self, name: str, colors: list[str], depth: str | None = None):
+    def framebuffer(
+        self, name: str, colors: list[str], depth: str | None = None
+    ) -> moderngl.Framebuffer:
         fb = self.fbos.get(name)
         if fb is None:
             fb = self.ctx.framebuffer(
@@ -175,7 +186,9 @@ class PassScopeError(KeyError):
 class ScopedBuffers:
     """The render buffers as one pass may see them: only what it declared."""
 
-    def __init__(self, buffers: RenderBuffers, pass_name: str, reads: set[str], writes: set[str]):
+    def __init__(
+        self, buffers: RenderBuffers, pass_name: str, reads: set[str], writes: set[str]
+    ) -> None:
         self._b = buffers
         self._pass = pass_name
         self._reads = reads | writes
@@ -195,7 +208,14 @@ class ScopedBuffers:
                 f"pass '{self._pass}' tried to {what} texture '{name}' without declaring it"
             )
 
-    def texture(self, name: str, components: int, dtype: str, size=None, nearest: bool = True):
+    def texture(
+        self,
+        name: str,
+        components: int,
+        dtype: str,
+        size: tuple[int, int] | None = None,
+        nearest: bool = True,
+    ) -> moderngl.Texture:
         self._check(name, True)
         return self._b.texture(name, components, dtype, size, nearest)
 
@@ -203,7 +223,9 @@ class ScopedBuffers:
         self._check(name, True)
         self._b.set_texture(name, tex)
 
-    def framebuffer(self, name: str, colors: list[str], depth: str | None = None):
+    def framebuffer(
+        self, name: str, colors: list[str], depth: str | None = None
+    ) -> moderngl.Framebuffer:
         for c in (*colors, *([depth] if depth else [])):
             self._check(c, True)
         return self._b.framebuffer(name, colors, depth)
@@ -220,7 +242,9 @@ class _ScopedTextures:
     def __contains__(self, name: object) -> bool:
         return isinstance(name, str) and name in self._s._reads and name in self._s._b.textures
 
-    def get(self, name: str, default=None):
+    def get(
+        self, name: str, default: moderngl.Texture | None = None
+    ) -> moderngl.Texture | None:
         return self[name] if name in self else default
 
 

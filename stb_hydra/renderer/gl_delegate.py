@@ -14,9 +14,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import moderngl
 import numpy as np
+import numpy.typing as npt
 
 from .. import limits
 from ..scene import prims
@@ -83,7 +85,7 @@ class DrawBatch:
         return len(self.models)
 
 
-def _t3(v) -> tuple[float, float, float]:
+def _t3(v: npt.ArrayLike) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(-1)
     return (float(a[0]), float(a[1]), float(a[2]))
 
@@ -210,8 +212,7 @@ class GLRenderDelegate(RenderDelegate):
     def resolve_material(self, mesh: prims.MeshPrim) -> MaterialParams:
         sp = self.materials.get(mesh.material) if mesh.material else None
         mat = sp.material if sp is not None else None
-        usable = mat is not None and not mat.uses_defaults
-        if usable:
+        if mat is not None and not mat.uses_defaults:
             return MaterialParams(
                 base=_t3(mat.diffuse_color),
                 roughness=float(mat.roughness),
@@ -258,19 +259,19 @@ class GLRenderDelegate(RenderDelegate):
                     (mlo, mhi) if g0 is None else (np.minimum(g0[0], mlo), np.maximum(g0[1], mhi))
                 )
         for path in self._static_changed:
-            b = new_bounds.get(path)
-            rp = self.meshes.get(path)
-            if b is not None and rp is not None and rp.mesh is not None and not rp.mesh.dynamic:
-                self.changed_static_bounds.append(b)
+            nb = new_bounds.get(path)
+            sp = self.meshes.get(path)
+            if nb is not None and sp is not None and sp.mesh is not None and not sp.mesh.dynamic:
+                self.changed_static_bounds.append(nb)
         self._static_changed.clear()
         self.mesh_bounds = new_bounds
-        for b in self.batches:
-            if b.instance_buffer is not None:
-                b.instance_buffer.release()
-            for vao in b.vaos.values():
+        for old in self.batches:
+            if old.instance_buffer is not None:
+                old.instance_buffer.release()
+            for vao in old.vaos.values():
                 vao.release()
         new: list[DrawBatch] = []
-        prev_map = {}
+        prev_map: dict[tuple, np.ndarray] = {}
         for k, mats in groups.items():
             models = np.concatenate(mats).astype(np.float32)
             prev = self._batch_prev.get(k)
@@ -304,12 +305,15 @@ class GLRenderDelegate(RenderDelegate):
             b.instance_buffer.write(data.tobytes())
         self.stats["instance_uploads"] += 1
 
-    def vertex_array(self, b: DrawBatch, prog: moderngl.Program, depth_only: bool = False):
+    def vertex_array(
+        self, b: DrawBatch, prog: moderngl.Program, depth_only: bool = False
+    ) -> moderngl.VertexArray:
         """Instanced VAO of a batch for a program (cached per program)."""
         key = prog.glo
         vao = b.vaos.get(key)
         if vao is None:
             g = self.geometry[b.geometry_key]
+            content: list[tuple[Any, ...]]
             if depth_only:
                 content = [
                     (g.vbo, "3f 24x", "in_pos"),
@@ -362,7 +366,7 @@ class GLRenderDelegate(RenderDelegate):
             # Same culled set: patch the records that changed (new shadow-map
             # slots, edited lights) and upload their span, not the whole buffer.
             packed = self._fov_packed
-            if len(moved):
+            if len(moved) and maps is not None:  # moved is empty when maps is None
                 packed[moved, LIGHT_SHADOW_SLOT_COLUMN] = maps[moved]
             if len(changed_rows):
                 sub = None if maps is None else maps[changed_rows]

@@ -73,7 +73,7 @@ class LightTable:
 
     def _grow(self, cap: int) -> None:
         for name, (shape, dtype, fill) in _COLUMNS.items():
-            new = np.full((cap, *shape), fill, dtype=dtype)
+            new: np.ndarray = np.full((cap, *shape), fill, dtype=dtype)
             old = self.cols.get(name)
             if old is not None:
                 new[: len(old)] = old

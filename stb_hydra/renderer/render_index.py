@@ -10,6 +10,7 @@ counters tests can assert on.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from ..scene.locators import DirtyBits, dirty_bits_for
@@ -44,21 +45,23 @@ class RenderIndex:
         self.counters = SyncCounters()
         scene_index.add_observer(self)
         self._insert(
-            AddedPrimEntry(p, scene_index.get_prim(p).prim_type) for p in scene_index.prim_paths()
+            AddedPrimEntry(p, sp.prim_type)
+            for p in scene_index.prim_paths()
+            if (sp := scene_index.get_prim(p)) is not None
         )
 
     # -- observer --
-    def prims_added(self, sender, entries: list[AddedPrimEntry]) -> None:
+    def prims_added(self, sender: SceneIndex, entries: list[AddedPrimEntry]) -> None:
         self._insert(entries)
 
-    def prims_removed(self, sender, paths: list[str]) -> None:
+    def prims_removed(self, sender: SceneIndex, paths: list[str]) -> None:
         for p in paths:
             rp = self.prims.pop(p, None)
             self._dirty.pop(p, None)
             if rp is not None:
                 self.delegate.destroy_prim(rp)
 
-    def prims_dirtied(self, sender, entries: list[DirtiedPrimEntry]) -> None:
+    def prims_dirtied(self, sender: SceneIndex, entries: list[DirtiedPrimEntry]) -> None:
         prims = self.prims
         dirty = self._dirty
         for e in entries:
@@ -69,7 +72,7 @@ class RenderIndex:
             if bits:
                 dirty[e.path] = dirty.get(e.path, DirtyBits.Clean) | bits
 
-    def _insert(self, entries) -> None:
+    def _insert(self, entries: Iterable[AddedPrimEntry]) -> None:
         for e in entries:
             old = self.prims.pop(e.path, None)
             if old is not None:

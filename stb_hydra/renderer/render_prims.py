@@ -7,7 +7,7 @@ records the bits it consumed in ``pending_bits`` so the delegate's
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +15,12 @@ from ..scene import prims
 from ..scene.locators import DirtyBits as D
 
 if TYPE_CHECKING:
+    from ..scene.stage_scene_index import (
+        CameraDataSource,
+        LightDataSource,
+        MaterialDataSource,
+        MeshDataSource,
+    )
     from .delegate import RenderDelegate
 
 _LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyCollection | D.DirtyResource
@@ -30,7 +36,8 @@ class RenderPrim:
         #: Bits synced since the delegate last committed this prim's resources.
         self.pending_bits = D.Clean
 
-    def sync(self, ds, bits: D) -> None:
+    def sync(self, ds: Any, bits: D) -> None:
+        """``ds``: the prim kind's data source (``scene.stage_scene_index``)."""
         raise NotImplementedError
 
     def finalize(self) -> None:
@@ -38,13 +45,13 @@ class RenderPrim:
 
 
 class LightSprim(RenderPrim):
-    def __init__(self, delegate, path, prim_type) -> None:
+    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.light: prims.LightPrim | None = None
         self.row = delegate.light_table.alloc(path)
         self.valid = False  # enabled before visibility
 
-    def sync(self, ds, bits: D) -> None:
+    def sync(self, ds: LightDataSource, bits: D) -> None:
         lp = self.light
         if lp is None or bits & _LIGHT_FULL:
             lp = ds.light()
@@ -69,11 +76,11 @@ class LightSprim(RenderPrim):
 
 
 class MeshRprim(RenderPrim):
-    def __init__(self, delegate, path, prim_type) -> None:
+    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.mesh: prims.MeshPrim | None = None
 
-    def sync(self, ds, bits: D) -> None:
+    def sync(self, ds: MeshDataSource, bits: D) -> None:
         m = self.mesh
         geom_bits = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
         if m is None or bits & geom_bits:
@@ -120,12 +127,12 @@ class MeshRprim(RenderPrim):
 
 
 class CameraSprim(RenderPrim):
-    def __init__(self, delegate, path, prim_type) -> None:
+    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.camera: prims.CameraPrim | None = None
         self.exposure_scale = 1.0
 
-    def sync(self, ds, bits: D) -> None:
+    def sync(self, ds: CameraDataSource, bits: D) -> None:
         if self.camera is None or bits & (D.DirtyParams | D.DirtyClipPlanes):
             self.camera = ds.camera()
             self.exposure_scale = ds.exposure_scale()
@@ -136,11 +143,11 @@ class CameraSprim(RenderPrim):
 
 
 class MaterialSprim(RenderPrim):
-    def __init__(self, delegate, path, prim_type) -> None:
+    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.material: prims.MaterialPrim | None = None
 
-    def sync(self, ds, bits: D) -> None:
+    def sync(self, ds: MaterialDataSource, bits: D) -> None:
         self.material = ds.material()
         for w in self.material.warnings:
             self.delegate.warn_once("material:" + w, w)

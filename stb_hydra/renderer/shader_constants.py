@@ -20,6 +20,7 @@ the same name. Change a value in Python, never a literal in a shader or a module
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 from .. import limits
 from ..color import LUMINANCE_REC709
@@ -121,7 +122,7 @@ QUAD_FWD_Y_SHIFT = 8
 # --- The GLSL side ------------------------------------------------------------------------
 
 
-def _vec3(v) -> str:
+def _vec3(v: Iterable[float]) -> str:
     return "vec3(" + ", ".join(repr(float(x)) for x in v) + ")"
 
 

@@ -9,6 +9,7 @@ record layout are GL-free, in :mod:`stb_hydra.shadows.capture`.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, cast
 
 import moderngl
 import numpy as np
@@ -25,6 +26,9 @@ from ..shadows.capture import (
 )
 from .camera import perspective
 from .gl import set_uniform, shader_library
+
+if TYPE_CHECKING:
+    from .gl_delegate import DrawBatch, GLRenderDelegate
 
 
 class ShadowCapturer:
@@ -43,7 +47,7 @@ class ShadowCapturer:
         self.captures = 0
         self.texels = 0
 
-    def _temp(self, w: int, h: int):
+    def _temp(self, w: int, h: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
         t = self._temps.get((w, h))
         if t is None:
             tex = self.ctx.depth_texture((w, h))
@@ -54,7 +58,9 @@ class ShadowCapturer:
             self._temps[(w, h)] = t
         return t
 
-    def capture(self, delegate, key: str, c: Capture, rect: AtlasRect, dynamic: bool) -> None:
+    def capture(
+        self, delegate: GLRenderDelegate, key: str, c: Capture, rect: AtlasRect, dynamic: bool
+    ) -> None:
         """Render the light's depth and copy it into ``rect`` of the atlas."""
         ctx = self.ctx
         border = limits.SHADOW_MAP_BORDER_PX
@@ -102,7 +108,7 @@ class ShadowCapturer:
         self.atlas_fbo.use()
         ctx.viewport = (rect.x, rect.y, rect.size, rect.size)
         tex.use(0)
-        cp["u_depth"].value = 0
+        cast(moderngl.Uniform, cp["u_depth"]).value = 0
         set_uniform(cp, "u_rect", (rect.x, rect.y, rect.size, border))
         set_uniform(cp, "u_omni", 1 if c.omni else 0)
         set_uniform(cp, "u_near", float(c.near))
@@ -111,7 +117,7 @@ class ShadowCapturer:
         set_uniform(cp, "u_tan_half", math.tan(c.spot_half_angle) if not c.omni else 1.0)
         set_uniform(cp, "u_bias_angle", BIAS_TEXELS * texel_angle(c, interior))
         if "u_face_rot" in cp:
-            cp["u_face_rot"].write(self._faces.tobytes())
+            cast(moderngl.Uniform, cp["u_face_rot"]).write(self._faces.tobytes())
         vao = delegate_fullscreen(ctx, cp)
         vao.render(moderngl.TRIANGLES, vertices=3)
         self.captures += 1
@@ -140,7 +146,7 @@ def delegate_fullscreen(ctx: moderngl.Context, prog: moderngl.Program) -> modern
     return vao
 
 
-def _batches_in_range(delegate, c: Capture, dynamic: bool):
+def _batches_in_range(delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> list[DrawBatch]:
     """Draw batches whose world bounds touch the light's range sphere; static maps
     skip dynamic geometry."""
     out = []

@@ -275,7 +275,9 @@ class ShadowAtlas:
         if blk is not None:
             self._insert(key, blk, size, priority)
             return AllocResult(key, AtlasRect(*blk, size), size, True, True)
-        got, displaced, evicted = size, {}, []
+        got = size
+        displaced: dict[Hashable, None] = {}
+        evicted: list[Hashable] = []
         journal: dict[Hashable, tuple[int, int, int, _Map]] = {}
         counters = (self._downgrades, self._evictions)
         if self._may_fit(floor, priority, displace):
@@ -323,7 +325,9 @@ class ShadowAtlas:
         del self._maps[key]
         self._release(*old)
         blk = self._take(size)  # the old block (maybe coalesced) may be enough
-        got, displaced, evicted = size, {}, []
+        got = size
+        displaced: dict[Hashable, None] = {}
+        evicted: list[Hashable] = []
         journal: dict[Hashable, tuple[int, int, int, _Map]] = {}
         counters = (self._downgrades, self._evictions)
         if blk is None and self._may_fit(floor, m.priority, displace):

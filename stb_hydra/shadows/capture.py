@@ -17,9 +17,11 @@ use that, not the light's current transform. :func:`map_record` is the std430
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import limits
 from .atlas import AtlasRect
@@ -58,15 +60,27 @@ class Capture:
         return self.spot_half_angle <= 0.0
 
 
-def capture_for(position, direction, range_m, radius, cone_cutoff_rad, emission) -> Capture:
+def _vec3(v: Iterable[float]) -> tuple[float, float, float]:
+    x, y, z = (float(c) for c in v)
+    return (x, y, z)
+
+
+def capture_for(
+    position: Iterable[float],
+    direction: Iterable[float],
+    range_m: float,
+    radius: float,
+    cone_cutoff_rad: float,
+    emission: int,
+) -> Capture:
     """Capture parameters of a light (positions in metres, cone cut-off in radians)."""
     half = float(cone_cutoff_rad)
     spot = half < math.radians(SPOT_MAX_HALF_ANGLE_DEG) and emission != 2
     near = max(float(radius) * 1.05, 0.01)
     rng = max(float(range_m), near * 4.0)
     return Capture(
-        tuple(float(x) for x in position),
-        tuple(float(x) for x in direction),
+        _vec3(position),
+        _vec3(direction),
         rng,
         near,
         min(half * 1.02 + math.radians(1.0), math.radians(85.0)) if spot else 0.0,
@@ -81,7 +95,7 @@ def spot_view_proj(c: Capture) -> np.ndarray:
     return np.linalg.inv(to_world) @ perspective(t, t, 0.0, 0.0, c.near, c.range)
 
 
-def _up_for(d: np.ndarray):
+def _up_for(d: np.ndarray) -> tuple[float, float, float]:
     return (0.0, 0.0, 1.0) if abs(float(d[1])) > 0.9 else (0.0, 1.0, 0.0)
 
 
@@ -122,7 +136,9 @@ def map_record(c: Capture, rect: AtlasRect, atlas_size: int) -> np.ndarray:
 # them for the main camera and the sun).
 
 
-def look_at(eye: np.ndarray, target: np.ndarray, up=(0.0, 1.0, 0.0)) -> np.ndarray:
+def look_at(
+    eye: npt.ArrayLike, target: npt.ArrayLike, up: npt.ArrayLike = (0.0, 1.0, 0.0)
+) -> np.ndarray:
     """Camera-to-world (row-vector) looking from ``eye`` at ``target``."""
     eye = np.asarray(eye, dtype=np.float64)
     f = np.asarray(target, dtype=np.float64) - eye

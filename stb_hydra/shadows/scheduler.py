@@ -407,7 +407,11 @@ class ShadowScheduler:
     def stats(self) -> SchedulerStats:
         frame = self._last_planned
         lights = self._lights
-        oldest = max((frame - lights[k].dirty_since for k in self._pending), default=0)
+        # Every pending (dirty static) light has dirty_since set (``_dirty``/``_clean``).
+        oldest = max(
+            (frame - lights[k].dirty_since for k in self._pending),  # type: ignore[operator]
+            default=0,
+        )
         return SchedulerStats(
             frame=frame,
             lights=len(lights),

@@ -19,7 +19,7 @@ Its passes read the standard inputs in ``READS``; everything is bound through
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import moderngl
 
@@ -139,7 +139,7 @@ class LightingMethod:
         for name in GBUFFER_SAMPLERS:
             if name in prog:
                 tex[name].use(unit)
-                prog[name].value = unit
+                cast(moderngl.Uniform, prog[name]).value = unit
                 unit += 1
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
@@ -147,19 +147,19 @@ class LightingMethod:
         d = self.delegate
         if d is not None and "u_ies" in prog and d.ies_texture is not None:
             d.ies_texture.use(unit)
-            prog["u_ies"].value = unit
+            cast(moderngl.Uniform, prog["u_ies"]).value = unit
             unit += 1
         slots = frame.get(ShadowSlots)
         if slots.records is not None:
             slots.records.bind_to_storage_buffer(1)
         if slots.atlas is not None and "u_shadow_atlas" in prog:
             slots.atlas.use(unit)
-            prog["u_shadow_atlas"].value = unit
+            cast(moderngl.Uniform, prog["u_shadow_atlas"]).value = unit
             unit += 1
         sun = frame.get(SunShadowMap)
         if "u_sun_shadow" in prog and sun.texture is not None:
             sun.texture.use(unit)
-            prog["u_sun_shadow"].value = unit
+            cast(moderngl.Uniform, prog["u_sun_shadow"]).value = unit
             unit += 1
         return unit
 

@@ -24,13 +24,23 @@ drops counted in ``frame.stats["dropped_lights"]``). Without a cap the image equ
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
+import moderngl
 import numpy as np
 
 from ... import limits
-from ..gl import set_uniform, shader_library
-from ..records import InViewLights, LightBuffer
-from .base import LightingMethod, program
-from .light_tree_build import ClusterGrid, ViewParams, auto_depth_range, bin_lights, cell_lists
+from ..gl import shader_library
+from ..records import InViewLights
+from .base import LightingMethod, Warn, program
+from .light_tree_build import (
+    CellLists,
+    ClusterGrid,
+    ViewParams,
+    auto_depth_range,
+    bin_lights,
+    cell_lists,
+)
 from .options import Opt, OptionError, Schema
 from .tiled import (
     BIND_EXTRA,
@@ -38,10 +48,16 @@ from .tiled import (
     BIND_LISTS,
     SSBOPool,
     cull_uniforms,
+    light_ssbo,
     parse_cap,
     read_stats,
+    set_shader_uniform,
     shade_direct,
 )
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
+    from ..gl_delegate import GLRenderDelegate
 
 GRID_OPTIONS = Schema(
     Opt("tile", int, limits.CLUSTER_TILE_PX_DEFAULT, range=limits.CLUSTER_TILE_PX_RANGE,
@@ -68,7 +84,9 @@ def check_grid_options(name: str, o: dict) -> None:
         raise OptionError(f"{name} options: need near_split < far")
 
 
-def frame_grid(delegate, frame, o: dict) -> tuple[ClusterGrid, ViewParams]:
+def frame_grid(
+    delegate: GLRenderDelegate | None, frame: FrameContext, o: dict
+) -> tuple[ClusterGrid, ViewParams]:
     """This frame's grid: options, else the automatic depth range."""
     vp = ViewParams.from_setup(frame.view)
     w, h = frame.buffers.size if frame.buffers.size[0] else (vp.width, vp.height)
@@ -81,8 +99,11 @@ def frame_grid(delegate, frame, o: dict) -> tuple[ClusterGrid, ViewParams]:
     return grid, vp
 
 
-def fov_lights(delegate, frame) -> tuple[np.ndarray, np.ndarray]:
+def fov_lights(
+    delegate: GLRenderDelegate | None, frame: FrameContext
+) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) positions and (n,) ranges of the FoV lights, in ``lights[]`` order."""
+    assert delegate is not None, "in-view lights need the delegate's light table"
     t, rows = delegate.light_table, frame.get(InViewLights).rows
     return (
         np.asarray(t.position[rows], dtype=np.float64),
@@ -90,10 +111,12 @@ def fov_lights(delegate, frame) -> tuple[np.ndarray, np.ndarray]:
     )
 
 
-def grid_uniforms(prog, grid: ClusterGrid) -> None:
-    set_uniform(prog, "u_grid", grid.tiles)
-    set_uniform(prog, "u_tile_px", grid.tile)
-    set_uniform(prog, "u_slices", grid.shader_params())
+def grid_uniforms(
+    prog: moderngl.Program | moderngl.ComputeShader, grid: ClusterGrid
+) -> None:
+    set_shader_uniform(prog, "u_grid", grid.tiles)
+    set_shader_uniform(prog, "u_tile_px", grid.tile)
+    set_shader_uniform(prog, "u_slices", grid.shader_params())
 
 
 class ClusteredLighting(LightingMethod):
@@ -105,22 +128,25 @@ class ClusteredLighting(LightingMethod):
         check_grid_options(cls.name, o)
         o["cap"] = parse_cap(o["cap"])
 
-    def __init__(self, delegate, warn=None, **options) -> None:
+    def __init__(
+        self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
+    ) -> None:
         super().__init__(delegate, warn, **options)
         self.pool: SSBOPool | None = None
         self.grid: ClusterGrid | None = None
-        self.lists = None
+        self.lists: CellLists | None = None
 
-    def prepare(self, frame) -> None:
+    def prepare(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
             return
-        self.grid, vp = frame_grid(self.delegate, frame, self.o)
+        grid, vp = frame_grid(self.delegate, frame, self.o)
+        self.grid = grid
         self.lists = None
         if self.o["assign"] != "cpu":
             return
         pos, rng = fov_lights(self.delegate, frame)
-        bins = bin_lights(self.grid, vp, pos, rng)
-        C = self.grid.count
+        bins = bin_lights(grid, vp, pos, rng)
+        C = grid.count
         cap = self.o["cap"]
         if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
             budget = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
@@ -129,7 +155,7 @@ class ClusteredLighting(LightingMethod):
                  f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
         self.lists = cell_lists(C, bins.cell, bins.light, cap)
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
             shade_direct(self, frame)
             return
@@ -137,6 +163,7 @@ class ClusteredLighting(LightingMethod):
         if self.pool is None:
             self.pool = SSBOPool(ctx)
         grid = self.grid
+        assert grid is not None  # prepare made it (lights in view)
         C = grid.count
         if self.lists is not None:
             with frame.timings_scope("clustered_upload"):
@@ -149,7 +176,7 @@ class ClusteredLighting(LightingMethod):
             frame.stats["list_entries"] = int(L.entries)
             frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
         else:
-            headers, lists = self._assign_gpu(frame)
+            headers, lists = self._assign_gpu(frame, grid, self.pool)
 
         with frame.timings_scope("clustered_shade"):
             prog = program(frame, "clustered_lighting.frag", self.scene_defines(frame))
@@ -165,9 +192,10 @@ class ClusteredLighting(LightingMethod):
         frame.stats["clusters"] = C
         frame.stats["cluster_depth_range"] = [grid.near_split, grid.far]
 
-    def _assign_gpu(self, frame):
+    def _assign_gpu(
+        self, frame: FrameContext, grid: ClusterGrid, pool: SSBOPool
+    ) -> tuple[moderngl.Buffer, moderngl.Buffer]:
         ctx = frame.ctx
-        grid = self.grid
         gx, gy, gz = grid.dims
         C = grid.count
         n = frame.light_count
@@ -176,22 +204,22 @@ class ClusteredLighting(LightingMethod):
         if stride < want:
             self.warn(f"clustered: {C} clusters x {want} lights exceed "
                  f"{limits.GRID_MAX_LIST_ENTRIES} list entries; lists capped at {stride}")
-        headers = self.pool.get("headers", C * 8)
-        lists = self.pool.get("lists", C * stride * 4)
-        stats = self.pool.get("stats", 16 + C * 4)
+        headers = pool.get("headers", C * 8)
+        lists = pool.get("lists", C * stride * 4)
+        stats = pool.get("stats", 16 + C * 4)
         stats.write(np.zeros(4, dtype=np.uint32).tobytes())
         self._stats = stats
         with frame.timings_scope("clustered_assign"):
             cs = shader_library(ctx).compute(
                 "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            frame.get(LightBuffer).ssbo.bind_to_storage_buffer(0)
+            light_ssbo(frame).bind_to_storage_buffer(0)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)
             grid_uniforms(cs, grid)
-            set_uniform(cs, "u_stride", stride)
-            set_uniform(cs, "u_cap", stride)
+            set_shader_uniform(cs, "u_stride", stride)
+            set_shader_uniform(cs, "u_cap", stride)
             cull_uniforms(cs, frame)
             cs.run(gx, gy, gz)
             ctx.memory_barrier()

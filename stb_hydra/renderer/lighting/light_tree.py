@@ -24,13 +24,17 @@ Stats: ``tree_cells``, ``list_cells``, ``tree_nodes``, ``list_entries``,
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ... import limits
-from .base import LightingMethod, program
+from .base import LightingMethod, Warn, program
 from .clustered import GRID_OPTIONS, check_grid_options, fov_lights, frame_grid, grid_uniforms
 from .light_tree_build import (
     HEURISTIC_MODES,
+    ClusterGrid,
+    PackedTrees,
     bin_lights,
     build_cells,
     cell_lists,
@@ -38,6 +42,10 @@ from .light_tree_build import (
 )
 from .options import Opt, Schema
 from .tiled import BIND_EXTRA, BIND_HEADERS, BIND_LISTS, SSBOPool, shade_direct
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
+    from ..gl_delegate import GLRenderDelegate
 
 OPTIONS = GRID_OPTIONS + Schema(
     Opt("leaf", int, limits.LIGHTTREE_LEAF_LIGHTS_DEFAULT,
@@ -55,18 +63,20 @@ class LightTreeLighting(LightingMethod):
     def check_options(cls, o: dict) -> None:
         check_grid_options(cls.name, o)
 
-    def __init__(self, delegate, warn=None, **options) -> None:
+    def __init__(
+        self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
+    ) -> None:
         super().__init__(delegate, warn, **options)
         self.pool: SSBOPool | None = None
-        self.grid = None
-        self.trees = None
+        self.grid: ClusterGrid | None = None
+        self.trees: PackedTrees | None = None
 
-    def prepare(self, frame) -> None:
+    def prepare(self, frame: FrameContext) -> None:
         self.trees = None
         if frame.light_count == 0:
             return
-        self.grid, vp = frame_grid(self.delegate, frame, self.o)
-        grid = self.grid
+        grid, vp = frame_grid(self.delegate, frame, self.o)
+        self.grid = grid
         pos, rng = fov_lights(self.delegate, frame)
         # 1. global sort by view depth (the light centre's)
         depth = -vp.to_view(pos)[:, 2]
@@ -100,10 +110,12 @@ class LightTreeLighting(LightingMethod):
         frame.stats["max_cell_lights"] = int(lists.total.max()) if C else 0
         frame.stats["dropped_lights"] = int(lists.dropped)
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         if frame.light_count == 0 or self.trees is None:
             shade_direct(self, frame)
             return
+        grid = self.grid
+        assert grid is not None  # prepare made it with the trees
         if self.pool is None:
             self.pool = SSBOPool(frame.ctx)
         t = self.trees
@@ -119,9 +131,9 @@ class LightTreeLighting(LightingMethod):
             headers.bind_to_storage_buffer(BIND_HEADERS)
             nodes.bind_to_storage_buffer(BIND_LISTS)
             lights.bind_to_storage_buffer(BIND_EXTRA)
-            grid_uniforms(prog, self.grid)
+            grid_uniforms(prog, grid)
             self.fullscreen_pass(frame, prog, "lighting")
-        frame.stats["clusters"] = self.grid.count
+        frame.stats["clusters"] = grid.count
 
     def release(self) -> None:
         if self.pool is not None:

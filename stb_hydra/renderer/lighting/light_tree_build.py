@@ -32,10 +32,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from ... import limits
+
+if TYPE_CHECKING:
+    from ..camera import ViewSetup
 
 #: Node bit fields (Listing 1): bit 0 leaf, bits 1-16 light count, bits 17-31 skip count.
 LEAF_BIT = 1
@@ -64,7 +69,7 @@ class ViewParams:
     orthographic: bool = False
 
     @classmethod
-    def from_setup(cls, v) -> ViewParams:
+    def from_setup(cls, v: ViewSetup) -> ViewParams:
         return cls(
             int(v.width), int(v.height), np.asarray(v.view, dtype=np.float64),
             (float(v.tan_half[0]), float(v.tan_half[1])),
@@ -157,7 +162,7 @@ class ClusterGrid:
         j = np.clip(np.nan_to_num(j, nan=0.0, neginf=0.0), 0, int(s) - 1).astype(np.int64)
         return np.where(d < ns, 0, 1 + j)
 
-    def cell_index(self, tx, ty, s) -> np.ndarray:
+    def cell_index(self, tx: npt.ArrayLike, ty: npt.ArrayLike, s: npt.ArrayLike) -> np.ndarray:
         ntx, nty = self.tiles
         return (np.asarray(s) * nty + np.asarray(ty)) * ntx + np.asarray(tx)
 
@@ -210,7 +215,15 @@ def widened_radius(radius: np.ndarray, depth: np.ndarray, scale: float = 1.0) ->
     )
 
 
-def _axis_tiles(a_lo, a_hi, off, tan, size, tile, ntiles):
+def _axis_tiles(
+    a_lo: np.ndarray,
+    a_hi: np.ndarray,
+    off: float,
+    tan: float,
+    size: int,
+    tile: int,
+    ntiles: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Screen-axis slope interval -> inclusive tile range (and a non-empty mask)."""
     pix_lo = ((a_lo - off) / tan + 1.0) * 0.5 * size
     pix_hi = ((a_hi - off) / tan + 1.0) * 0.5 * size
@@ -382,7 +395,9 @@ def unpack_bits(bits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return b & LEAF_BIT, (b >> COUNT_SHIFT) & COUNT_MASK, (b >> SKIP_SHIFT) & SKIP_MASK
 
 
-def _segment_minmax(lo, hi, first, count):
+def _segment_minmax(
+    lo: npt.ArrayLike, hi: npt.ArrayLike, first: npt.ArrayLike, count: npt.ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
     """min(lo), max(hi) over index ranges [first, first + count) (empty -> inf, -inf)."""
     first = np.asarray(first, dtype=np.int64).ravel()
     count = np.asarray(count, dtype=np.int64).ravel()
@@ -582,7 +597,9 @@ def traverse(nodes: np.ndarray, q_lo: float, q_hi: float | None = None) -> tuple
     return out, reads
 
 
-def brute_force(lo: np.ndarray, hi: np.ndarray, q_lo: float, q_hi: float | None = None):
+def brute_force(
+    lo: np.ndarray, hi: np.ndarray, q_lo: float, q_hi: float | None = None
+) -> np.ndarray:
     """Indices of the intervals [lo_i, hi_i] overlapping [q_lo, q_hi]."""
     q_hi = q_lo if q_hi is None else q_hi
     return np.nonzero((np.asarray(lo) <= q_hi) & (np.asarray(hi) >= q_lo))[0]

@@ -12,7 +12,7 @@ in, values coerced: the CLI hands over strings or loosely parsed values) or rais
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -118,7 +118,7 @@ class Schema:
     def __init__(self, *opts: Opt) -> None:
         self.opts: dict[str, Opt] = {o.name: o for o in opts}
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Opt]:
         return iter(self.opts.values())
 
     def __contains__(self, name: object) -> bool:

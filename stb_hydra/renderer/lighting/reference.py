@@ -5,13 +5,18 @@ against."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .base import LightingMethod, program
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
 
 
 class ReferenceLighting(LightingMethod):
     name = "reference"
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         defines = self.scene_defines(frame)
         if frame.light_count:
             defines["LOCAL_LIGHTS"] = True

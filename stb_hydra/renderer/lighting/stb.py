@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import math
 from importlib import resources
+from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
 import numpy as np
@@ -42,11 +43,15 @@ import numpy as np
 from ... import limits
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform
-from ..graph import DERIVED, Rec, Tex
+from ..graph import DERIVED, Rec, Resource, Tex
 from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
 from ..tasks.base import Pass
-from .base import LightingMethod, program
+from .base import LightingMethod, Warn, program
 from .options import Opt, OptionError, Schema
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
+    from ..gl_delegate import GLRenderDelegate
 
 #: Big-tile target functions: the talk's central segment, uniform (comparison).
 TARGET_MODES = {"segment": 0, "uniform": 1}
@@ -77,7 +82,7 @@ DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
 DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_terms": "stb_terms"}
 
 
-def load_quad_patterns() -> dict:
+def load_quad_patterns() -> dict[str, Any]:
     data = resources.files("stb_hydra").joinpath("data/quad_patterns.json").read_text()
     return json.loads(data)
 
@@ -96,7 +101,9 @@ class StbLighting(LightingMethod):
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
 
-    def __init__(self, delegate, warn=None, **options) -> None:
+    def __init__(
+        self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
+    ) -> None:
         super().__init__(delegate, warn, **options)
         self.hiz_level = int(math.log2(int(self.o["big_tile"])))
         self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
@@ -109,11 +116,11 @@ class StbLighting(LightingMethod):
             Tex("stb_terms", "rgba8", DERIVED),
         )
 
-    def debug_passes(self) -> list:
+    def debug_passes(self) -> list[Pass]:
         return [StbDebugPass(self, aov) for aov in DEBUG_AOVS]
 
     # -- resources --
-    def _lut_textures(self, ctx: moderngl.Context):
+    def _lut_textures(self, ctx: moderngl.Context) -> tuple[moderngl.Texture, moderngl.Texture]:
         if self._luts is None:
             pat = load_quad_patterns()
             tile = np.array(pat["tile_of_quad"], dtype=np.int32)
@@ -149,7 +156,7 @@ class StbLighting(LightingMethod):
             "terms": (small[0] * qs, small[1] * qs),
         }
 
-    def prepare(self, frame) -> None:
+    def prepare(self, frame: FrameContext) -> None:
         o = self.o
         rng = np.random.default_rng(frame.seed)
         if o["interleave"]:
@@ -158,7 +165,7 @@ class StbLighting(LightingMethod):
             half = int(o["small_tile"]) // 2
             self.pattern_offset = (2 * int(rng.integers(0, half)), 2 * int(rng.integers(0, half)))
 
-    def _common_uniforms(self, frame, prog) -> None:
+    def _common_uniforms(self, frame: FrameContext, prog: moderngl.Program) -> None:
         o = self.o
         set_uniform(prog, "u_block", SLOT_BLOCKS[int(o["K"])])
         set_uniform(prog, "u_big_px", int(o["big_tile"]))
@@ -167,21 +174,28 @@ class StbLighting(LightingMethod):
         set_uniform(prog, "u_small_px", int(o["small_tile"]))
         set_uniform(prog, "u_weight_cap", float(o["weight_cap"]))
 
-    def _bind(self, frame, prog, unit: int, name: str, tex) -> int:
+    def _bind(
+        self,
+        frame: FrameContext,
+        prog: moderngl.Program,
+        unit: int,
+        name: str,
+        tex: moderngl.Texture,
+    ) -> int:
         if name in prog:
             tex.use(unit)
-            prog[name].value = unit
+            cast(moderngl.Uniform, prog[name]).value = unit
             return unit + 1
         return unit
 
-    def defines(self, frame) -> dict[str, object]:
+    def defines(self, frame: FrameContext) -> dict[str, object]:
         d = self.scene_defines(frame)
         d["STB_N"] = int(self.o["N"])
         if self.o["shadow_res"] == "pixel":
             d["STB_PIXEL_TERMS"] = True
         return d
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
             # No local lights: the sun-only path (compiled without STB passes).
             prog = program(frame, "lighting_direct.frag", self.scene_defines(frame))
@@ -242,7 +256,9 @@ class StbLighting(LightingMethod):
             self.fullscreen_pass(frame, prog, "lighting")
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
 
-    def _pass(self, frame, prog, target: str, size) -> None:
+    def _pass(
+        self, frame: FrameContext, prog: moderngl.Program, target: str, size: tuple[int, int]
+    ) -> None:
         with frame.timings_scope(target):
             fbo = frame.buffers.framebuffer("fb_" + target, [target])
             draw_fullscreen(frame.ctx, prog, fbo, size)
@@ -262,13 +278,15 @@ class StbDebugPass(Pass):
     only_final = True
 
     def __init__(self, method: StbLighting, aov: str) -> None:
-        super().__init__(method.delegate)
+        # The method's delegate (None only for a method made without an engine); this
+        # pass draws from the frame's buffers and never uses it.
+        super().__init__(cast("GLRenderDelegate", method.delegate))
         self.method = method
         self.aov = aov
         self.name = f"debug_{aov}"  # type: ignore[misc]
 
-    def io(self):
-        reads = (
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
+        reads: tuple[Resource, ...] = (
             *(Tex(n) for n in DEBUG_INPUTS.values()),
             Rec(InViewLights),
             Rec(DistantLights),
@@ -277,7 +295,7 @@ class StbDebugPass(Pass):
         )
         return reads, (Tex(self.name, "rgba8"),)
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         m = self.method
         target = self.name
         fbo = frame.buffers.framebuffer("fb_" + target, [target])

@@ -21,6 +21,7 @@ frame: a small sync; default on).
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
 import moderngl
 import numpy as np
@@ -28,8 +29,12 @@ import numpy as np
 from ... import limits
 from ..gl import set_uniform, shader_library
 from ..records import LightBuffer
-from .base import LightingMethod, program
+from .base import LightingMethod, Warn, program
 from .options import Opt, Schema
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
+    from ..gl_delegate import GLRenderDelegate
 
 #: First texture unit for the baselines' own textures (the shared ones stay below).
 FIRST_UNIT = 10
@@ -43,7 +48,7 @@ OPTIONS = Schema(
 )
 
 
-def parse_cap(value) -> int | None:
+def parse_cap(value: str | float | None) -> int | None:
     """None / "none" / "off" / 0 / negative / False -> None (no cap), else int >= 1."""
     if value is None or value is False:
         return None
@@ -88,20 +93,35 @@ class SSBOPool:
         self.buffers.clear()
 
 
-def shade_direct(method: LightingMethod, frame) -> None:
+def set_shader_uniform(
+    prog: moderngl.Program | moderngl.ComputeShader, name: str, value: object
+) -> None:
+    """``gl.set_uniform`` for a compute shader too: it only looks ``prog[name]`` up, but
+    its signature says Program (use it directly once it accepts ComputeShader)."""
+    set_uniform(prog, name, value)  # type: ignore[arg-type]
+
+
+def shade_direct(method: LightingMethod, frame: FrameContext) -> None:
     """No local lights in view: sun + ambient only (the reference's light-less path)."""
     prog = program(frame, "lighting_direct.frag", method.scene_defines(frame))
     method.bind_common(frame, prog)
     method.fullscreen_pass(frame, prog, "lighting")
 
 
-def cull_uniforms(prog, frame) -> None:
+def cull_uniforms(prog: moderngl.ComputeShader, frame: FrameContext) -> None:
     """Margins and the world -> view radius scale of ``tiled_cull.comp`` (the GPU twin
     of ``light_tree_build.widened_radius``)."""
-    set_uniform(prog, "u_rel_margin", float(limits.CULL_RADIUS_REL_MARGIN))
-    set_uniform(prog, "u_depth_margin", float(limits.CULL_DEPTH_REL_MARGIN))
+    set_shader_uniform(prog, "u_rel_margin", float(limits.CULL_RADIUS_REL_MARGIN))
+    set_shader_uniform(prog, "u_depth_margin", float(limits.CULL_DEPTH_REL_MARGIN))
     scale = np.linalg.norm(np.asarray(frame.view.view, dtype=np.float64)[:3, :3], 2)
-    set_uniform(prog, "u_radius_scale", float(scale))
+    set_shader_uniform(prog, "u_radius_scale", float(scale))
+
+
+def light_ssbo(frame: FrameContext) -> moderngl.Buffer:
+    """The frame's light SSBO (uploaded whenever lights are in view)."""
+    ssbo = frame.get(LightBuffer).ssbo
+    assert ssbo is not None, "no light buffer with lights in view"
+    return ssbo
 
 
 def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
@@ -123,18 +143,20 @@ class TiledLighting(LightingMethod):
     def check_options(cls, o: dict) -> None:
         o["tile_cap"] = parse_cap(o["tile_cap"])
 
-    def __init__(self, delegate, warn=None, **options) -> None:
+    def __init__(
+        self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
+    ) -> None:
         super().__init__(delegate, warn, **options)
         self.cap: int | None = self.o["tile_cap"]
         self.tile = limits.TILED_TILE_PX
         self.pool: SSBOPool | None = None
         self.tiles = (0, 0)
-        self.stats_buffer = None
+        self.stats_buffer: moderngl.Buffer | None = None
 
     def grid(self, width: int, height: int) -> tuple[int, int]:
         return (math.ceil(width / self.tile), math.ceil(height / self.tile))
 
-    def execute(self, frame) -> None:
+    def execute(self, frame: FrameContext) -> None:
         w, h = frame.buffers.size
         gx, gy = self.grid(w, h)
         if frame.light_count == 0:
@@ -163,17 +185,17 @@ class TiledLighting(LightingMethod):
             cs = shader_library(ctx).compute(
                 "tiled_cull.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            frame.get(LightBuffer).ssbo.bind_to_storage_buffer(0)
+            light_ssbo(frame).bind_to_storage_buffer(0)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)
             hiz = frame.buffers.textures[f"hiz{int(math.log2(self.tile))}"]
             hiz.use(FIRST_UNIT)
-            set_uniform(cs, "u_hiz", FIRST_UNIT)
-            set_uniform(cs, "u_grid", (gx, gy))
-            set_uniform(cs, "u_tile_px", self.tile)
-            set_uniform(cs, "u_stride", stride)
-            set_uniform(cs, "u_cap", stride)
+            set_shader_uniform(cs, "u_hiz", FIRST_UNIT)
+            set_shader_uniform(cs, "u_grid", (gx, gy))
+            set_shader_uniform(cs, "u_tile_px", self.tile)
+            set_shader_uniform(cs, "u_stride", stride)
+            set_shader_uniform(cs, "u_cap", stride)
             cull_uniforms(cs, frame)
             cs.run(gx, gy, 1)
             ctx.memory_barrier()

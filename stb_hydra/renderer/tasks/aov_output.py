@@ -25,9 +25,11 @@ Colouring and file writing live in ``stb_hydra/io/debug_views.py``.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
+import moderngl
 import numpy as np
+import numpy.typing as npt
 
 from ..frame import FrameContext
 from ..graph import Imported, Rec, Resource, Tex
@@ -37,6 +39,9 @@ from ..records import InViewLights, LightBuffer, SceneColor
 from .base import Pass
 from .color_correction import COLOR_SOURCES
 
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
+
 #: The STB method's debug views.
 STB_DEBUG_AOVS = StbLighting.debug_aovs
 #: Debug AOVs: every method's declared views, then the light-count heat map (all methods).
@@ -45,7 +50,7 @@ DEBUG_AOVS = (*debug_aov_names(), "lightcount")
 AOVS = ("color", "depth", "normal", "albedo", "display", *DEBUG_AOVS)
 
 
-def _read(tex, comps: int, dtype) -> np.ndarray:
+def _read(tex: moderngl.Texture, comps: int, dtype: npt.DTypeLike) -> np.ndarray:
     w, h = tex.size
     a = np.frombuffer(tex.read(), dtype=dtype).reshape(h, w, comps)
     return np.flipud(a)  # GL rows are bottom-up
@@ -105,7 +110,12 @@ class AovOutputTask(Pass):
     only_final = True
     side_effect = True
 
-    def __init__(self, delegate, method: Any = None, on_change: Callable[[], None] | None = None):
+    def __init__(
+        self,
+        delegate: GLRenderDelegate,
+        method: Any = None,
+        on_change: Callable[[], None] | None = None,
+    ) -> None:
         super().__init__(delegate)
         self.method = method
         self.on_change = on_change
@@ -126,7 +136,7 @@ class AovOutputTask(Pass):
             if self.on_change is not None:
                 self.on_change()
 
-    def io(self):
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
         reads: list[Resource] = []
         for name in sorted(self._requested):
             if name in AOV_READS:
@@ -189,6 +199,6 @@ class LightCountTask(Pass):
         prog = shader_library(frame.ctx).program("fullscreen.vert", "debug_lightcount.frag")
         bufs.textures["g_depth"].use(0)
         if "g_depth" in prog:
-            prog["g_depth"].value = 0
+            cast(moderngl.Uniform, prog["g_depth"]).value = 0
         ssbo.bind_to_storage_buffer(0)
         draw_fullscreen(frame.ctx, prog, fbo, bufs.size)

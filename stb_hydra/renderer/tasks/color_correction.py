@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ...color.ocio import ColorCorrectionPass, ColorPipeline
 from ..frame import FrameContext
 from ..graph import Imported, Rec, Tex
 from ..records import SceneColor
 from .base import Pass
 from .taa import ACCUM
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
 #: Buffers that may hold the frame's scene-linear colour (``SceneColor.buffer``).
 COLOR_SOURCES = (Tex("lighting"), *(Tex(n, optional=True) for n in ACCUM))
@@ -21,7 +26,7 @@ class ColorCorrectionTask(Pass):
     reads = (Rec(SceneColor), *COLOR_SOURCES, Imported("color_pipeline"))
     writes = (Tex("display", "rgba8"),)
 
-    def __init__(self, delegate, pipeline: ColorPipeline) -> None:
+    def __init__(self, delegate: GLRenderDelegate, pipeline: ColorPipeline) -> None:
         super().__init__(delegate)
         self.pipeline = pipeline
         self._pass: ColorCorrectionPass | None = None

@@ -4,6 +4,7 @@ previous view-projection, sun, ambient, light count, seed, big-tile grid."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import moderngl
 import numpy as np
@@ -15,13 +16,16 @@ from ..graph import Rec
 from ..records import DistantLights, FrameBlock, InViewLights
 from .base import Pass
 
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
+
 
 class FrameUniformsTask(Pass):
     name = "frame_uniforms"
     reads = (Rec(DistantLights), Rec(InViewLights))
     writes = (Rec(FrameBlock),)
 
-    def __init__(self, delegate, ctx: moderngl.Context) -> None:
+    def __init__(self, delegate: GLRenderDelegate, ctx: moderngl.Context) -> None:
         super().__init__(delegate)
         self.uniforms = FrameUniforms(ctx)
         self._prev_view_proj: np.ndarray | None = None

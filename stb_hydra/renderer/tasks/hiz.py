@@ -4,11 +4,15 @@ texel per 128 px big tile."""
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from ..frame import FrameContext
 from ..gl import shader_library
-from ..graph import Size, Tex
+from ..graph import Resource, Size, Tex
 from .base import Pass
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
 HIZ_LEVELS = 7
 
@@ -17,11 +21,11 @@ class HiZTask(Pass):
     name = "hiz"
     reads = (Tex("g_depth", "r32f"),)
 
-    def __init__(self, delegate, levels: int = HIZ_LEVELS) -> None:
+    def __init__(self, delegate: GLRenderDelegate, levels: int = HIZ_LEVELS) -> None:
         super().__init__(delegate)
         self.levels = levels
 
-    def io(self):
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
         levels = range(1, self.levels + 1)
         writes = tuple(Tex(f"hiz{k}", "rg32f", Size(divisor=2**k)) for k in levels)
         return self.reads, writes

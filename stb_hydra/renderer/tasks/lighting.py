@@ -3,11 +3,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from ..frame import FrameContext
-from ..graph import Rec, Tex
+from ..graph import Rec, Resource, Tex
 from ..lighting.base import LightingMethod
 from ..records import SceneColor
 from .base import Pass
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
 LIGHTING = Tex("lighting", "rgba16f")
 
@@ -15,11 +20,11 @@ LIGHTING = Tex("lighting", "rgba16f")
 class LightingTask(Pass):
     name = "lighting"
 
-    def __init__(self, delegate, method: LightingMethod) -> None:
+    def __init__(self, delegate: GLRenderDelegate, method: LightingMethod) -> None:
         super().__init__(delegate)
         self.method = method
 
-    def io(self):
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
         return self.method.reads(), (LIGHTING, Rec(SceneColor), *self.method.internal())
 
     def prepare(self, frame: FrameContext) -> None:

@@ -3,18 +3,23 @@ that intersects the scene bounds, in the sun's orthographic space."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import moderngl
 import numpy as np
 
-from ..camera import look_at, orthographic
+from ..camera import ViewSetup, look_at, orthographic
 from ..frame import FrameContext
 from ..gl import set_uniform, shader_library
 from ..graph import Imported, Rec
 from ..records import DistantLights, SunShadowMap
 from .base import Pass
 
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
-def _frustum_corners(view, max_dist: float) -> np.ndarray:
+
+def _frustum_corners(view: ViewSetup, max_dist: float) -> np.ndarray:
     tx, ty = view.tan_half
     ox, oy = view.offset
     pts = []
@@ -37,7 +42,7 @@ class SunShadowTask(Pass):
     reads = (Imported("meshes"), Rec(DistantLights))
     writes = (Rec(DistantLights), Rec(SunShadowMap))
 
-    def __init__(self, delegate) -> None:
+    def __init__(self, delegate: GLRenderDelegate) -> None:
         super().__init__(delegate)
         self.texture: moderngl.Texture | None = None
         self.fbo: moderngl.Framebuffer | None = None

@@ -13,17 +13,23 @@ light-table row, and records persist in slots.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
+import moderngl
 import numpy as np
 
 from ... import limits
 from ...shadows.atlas import ShadowAtlas
 from ...shadows.capture import RECORD_FLOATS, Capture, capture_for
-from ...shadows.scheduler import ShadowScheduler
+from ...shadows.scheduler import SchedulerStats, ShadowScheduler, ShadowUpdate
 from ..frame import FrameContext
 from ..graph import Imported, Rec
 from ..records import InViewLights, ShadowSlots
 from ..shadow_capture import ShadowCapturer
 from .base import Pass
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
 #: Frames a shadowed light may stay out of the FoV before its map is freed.
 KEEP_OUT_OF_VIEW_FRAMES = 120
@@ -39,7 +45,7 @@ class ShadowAtlasTask(Pass):
 
     def __init__(
         self,
-        delegate,
+        delegate: GLRenderDelegate,
         atlas_size: int | None = None,
         budget_texels: int | None = None,
         enabled: bool = True,
@@ -67,12 +73,12 @@ class ShadowAtlasTask(Pass):
         self._last_seen = np.full(0, -1, dtype=np.int64)  # per light-table row
         self._seen_version = np.full(0, -1, dtype=np.int64)
         self._slot_of_row = np.full(0, -1, dtype=np.int64)
-        self._plan = []
+        self._plan: list[ShadowUpdate] = []
         self._last_policy = -(10**9)
         self._membership_changed = False
-        self.records_ssbo = None
+        self.records_ssbo: moderngl.Buffer | None = None
         self._uploaded = False
-        self.last_stats = None
+        self.last_stats: SchedulerStats | None = None
 
     # -- per-row arrays --
     def _grow(self, n: int) -> None:
@@ -136,7 +142,7 @@ class ShadowAtlasTask(Pass):
         self._plan = [] if (self.frozen or not self._row_of) else self.scheduler.plan_frame(fidx)
         if self.capturer is None:
             self.capturer = ShadowCapturer(frame.ctx, self.atlas_size)
-        self._update_records()
+        self._update_records(self.capturer)
         self._reserve_records_buffer(frame)
         maps = self._slots_for(rows)
         frame.put(ShadowSlots(maps=maps, atlas=self.capturer.atlas, records=self.records_ssbo))
@@ -238,7 +244,7 @@ class ShadowAtlasTask(Pass):
         self._last_policy = fidx
         self._records_dirty = True  # rects may have moved
 
-    def _update_records(self) -> None:
+    def _update_records(self, capturer: ShadowCapturer) -> None:
         """Planned maps become valid this frame; rect changes invalidate."""
         sch = self.scheduler
         if self._records_dirty:
@@ -253,8 +259,9 @@ class ShadowAtlasTask(Pass):
         for u in self._plan:
             if u.rect is None or u.transform is None:
                 continue
-            s = self._slot(u.key)
-            self._records[s] = self.capturer.record(u.transform, u.rect)
+            # The scheduler keeps keys and transforms opaque: ours are paths and Captures.
+            s = self._slot(cast(str, u.key))
+            self._records[s] = capturer.record(cast(Capture, u.transform), u.rect)
             self._slot_rect[s] = u.rect
             self._slot_valid[s] = True
 
@@ -288,10 +295,12 @@ class ShadowAtlasTask(Pass):
         for u in self._plan:
             if u.rect is None or u.transform is None:
                 continue
-            self.capturer.capture(d, u.key, u.transform, u.rect, u.dynamic)
+            key, c = cast(str, u.key), cast(Capture, u.transform)
+            self.capturer.capture(d, key, c, u.rect, u.dynamic)
         self.scheduler.commit(self._plan)
         n = len(self._slot_rect)
         if self._plan or not self._uploaded:
+            assert self.records_ssbo is not None  # reserved in prepare
             self.records_ssbo.write(self._records[: max(n, 1)].tobytes())
             self._uploaded = True
         st = self.scheduler.stats()

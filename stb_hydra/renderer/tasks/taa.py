@@ -3,12 +3,19 @@ accumulation sequence (``--accumulate M``: distinct frame seeds, same time)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
+import moderngl
+
 from ..frame import FrameContext
 from ..fullscreen import draw_fullscreen
 from ..gl import shader_library
 from ..graph import Rec, Tex
 from ..records import SceneColor
 from .base import Pass
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
 
 ACCUM = ("accum_a", "accum_b")
 
@@ -18,7 +25,7 @@ class AccumulateTask(Pass):
     reads = (Tex("lighting", "rgba16f"), Rec(SceneColor))
     writes = (Rec(SceneColor), *(Tex(n, "rgba32f") for n in ACCUM))
 
-    def __init__(self, delegate) -> None:
+    def __init__(self, delegate: GLRenderDelegate) -> None:
         super().__init__(delegate)
         self.count = 0
 
@@ -35,10 +42,10 @@ class AccumulateTask(Pass):
             bufs.framebuffer("fb_" + src_name, [src_name]).clear(0.0, 0.0, 0.0, 0.0)
         cur.use(0)
         bufs.textures[src_name].use(1)
-        prog["u_current"].value = 0
+        cast(moderngl.Uniform, prog["u_current"]).value = 0
         if "u_history" in prog:
-            prog["u_history"].value = 1
-        prog["u_weight"].value = 1.0 / (self.count + 1)
+            cast(moderngl.Uniform, prog["u_history"]).value = 1
+        cast(moderngl.Uniform, prog["u_weight"]).value = 1.0 / (self.count + 1)
         draw_fullscreen(ctx, prog, bufs.framebuffer("fb_" + dst_name, [dst_name]), bufs.size)
         self.count += 1
         frame.put(SceneColor(dst_name))
