@@ -29,6 +29,7 @@ demo: sysdeps $(STAMP)
 test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools
 	$(VENV)/bin/lint-imports
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -q -p no:cacheprovider
 
 lint: $(STAMP)
