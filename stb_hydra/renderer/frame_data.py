@@ -8,6 +8,7 @@ import moderngl
 import numpy as np
 
 from .camera import ViewSetup
+from .shader_constants import UBO_FRAME
 
 #: mat4 x 6 + vec4 x 9 + vec4[3] x 2 + uvec4 (std140: every member 16-byte aligned).
 FRAME_BLOCK_BYTES = 6 * 64 + 16 * 16
@@ -81,7 +82,7 @@ class FrameUniforms:
     def update(self, data: bytes) -> None:
         assert len(data) == FRAME_BLOCK_BYTES, len(data)
         self.buffer.write(data)
-        self.buffer.bind_to_uniform_block(0)
+        self.buffer.bind_to_uniform_block(UBO_FRAME)
 
     def release(self) -> None:
         self.buffer.release()

@@ -9,13 +9,14 @@ from __future__ import annotations
 import numpy as np
 
 from .. import limits
+from . import shader_constants as sc
 from .light_table import LightTable
 
-LIGHT_STRIDE_FLOATS = 36  # 9 x vec4
-LIGHT_STRIDE_BYTES = LIGHT_STRIDE_FLOATS * 4
-#: Float column of the shadow-map record slot (``Light.shadow.x`` in lights.glsl;
-#: -1 = unshadowed): the one column patched when only slots change.
-LIGHT_SHADOW_SLOT_COLUMN = 26
+LIGHT_STRIDE_FLOATS = sc.LIGHT_STRIDE_FLOATS  # 9 x vec4
+LIGHT_STRIDE_BYTES = sc.LIGHT_STRIDE_BYTES
+#: Float column of the shadow-map record slot (-1 = unshadowed): the one column
+#: patched when only slots change.
+LIGHT_SHADOW_SLOT_COLUMN = sc.LIGHT_COL_SHADOW_MAP
 
 
 def cull_lights(table: LightTable, planes: np.ndarray) -> np.ndarray:
@@ -49,29 +50,31 @@ def pack_lights(
     if n == 0:
         return out
     t = table
-    out[:, 0:3] = t.position[rows]
-    out[:, 3] = t.range[rows]
-    out[:, 4:7] = t.direction[rows]
-    out[:, 7] = t.emission[rows]
-    out[:, 8:11] = t.tangent[rows]
-    out[:, 11] = t.type[rows]
-    out[:, 12:15] = t.intensity[rows]
-    out[:, 15] = t.flux[rows]
+    C = sc  # columns of struct Light (shader_constants.LIGHT_LAYOUT)
+    out[:, C.LIGHT_COL_POSITION : C.LIGHT_COL_POSITION + 3] = t.position[rows]
+    out[:, C.LIGHT_COL_RANGE] = t.range[rows]
+    out[:, C.LIGHT_COL_AXIS : C.LIGHT_COL_AXIS + 3] = t.direction[rows]
+    out[:, C.LIGHT_COL_EMISSION] = t.emission[rows]
+    out[:, C.LIGHT_COL_TANGENT : C.LIGHT_COL_TANGENT + 3] = t.tangent[rows]
+    out[:, C.LIGHT_COL_TYPE] = t.type[rows]
+    out[:, C.LIGHT_COL_INTENSITY : C.LIGHT_COL_INTENSITY + 3] = t.intensity[rows]
+    out[:, C.LIGHT_COL_FLUX] = t.flux[rows]
     cut = t.cone_cutoff[rows]
-    out[:, 16] = np.cos(cut)
-    out[:, 17] = cut
-    out[:, 18] = t.cone_start[rows]
-    out[:, 19] = t.focus[rows]
-    out[:, 20:23] = t.focus_tint[rows]
-    out[:, 23] = t.ies_layer[rows]
-    out[:, 24] = t.ies_scale[rows]
-    out[:, 25] = t.ies_angle_scale[rows]
-    out[:, LIGHT_SHADOW_SLOT_COLUMN] = -1.0 if shadow_maps is None else shadow_maps
-    out[:, 27] = t.shadow_enable[rows].astype(np.float32) + 2.0 * t.shadow_dynamic[rows]
-    out[:, 28:31] = t.shadow_color[rows]
-    out[:, 31] = t.shadow_distance[rows]
-    out[:, 32] = t.shadow_falloff[rows]
-    out[:, 33] = t.shadow_falloff_gamma[rows]
-    out[:, 34] = t.diffuse[rows]
-    out[:, 35] = t.specular[rows]
+    out[:, C.LIGHT_COL_COS_CUTOFF] = np.cos(cut)
+    out[:, C.LIGHT_COL_CUTOFF] = cut
+    out[:, C.LIGHT_COL_CONE_START] = t.cone_start[rows]
+    out[:, C.LIGHT_COL_FOCUS] = t.focus[rows]
+    out[:, C.LIGHT_COL_FOCUS_TINT : C.LIGHT_COL_FOCUS_TINT + 3] = t.focus_tint[rows]
+    out[:, C.LIGHT_COL_IES_LAYER] = t.ies_layer[rows]
+    out[:, C.LIGHT_COL_IES_SCALE] = t.ies_scale[rows]
+    out[:, C.LIGHT_COL_IES_ANGLE_SCALE] = t.ies_angle_scale[rows]
+    out[:, C.LIGHT_COL_SHADOW_MAP] = C.LIGHT_INDEX_NONE if shadow_maps is None else shadow_maps
+    flags = t.shadow_enable[rows].astype(np.float32) + 2.0 * t.shadow_dynamic[rows]
+    out[:, C.LIGHT_COL_SHADOW_FLAGS] = flags
+    out[:, C.LIGHT_COL_SHADOW_COLOR : C.LIGHT_COL_SHADOW_COLOR + 3] = t.shadow_color[rows]
+    out[:, C.LIGHT_COL_SHADOW_DISTANCE] = t.shadow_distance[rows]
+    out[:, C.LIGHT_COL_SHADOW_FALLOFF] = t.shadow_falloff[rows]
+    out[:, C.LIGHT_COL_SHADOW_FALLOFF_GAMMA] = t.shadow_falloff_gamma[rows]
+    out[:, C.LIGHT_COL_DIFFUSE] = t.diffuse[rows]
+    out[:, C.LIGHT_COL_SPECULAR] = t.specular[rows]
     return out

@@ -34,6 +34,7 @@ from ..records import (
     ShadowSlots,
     SunShadowMap,
 )
+from ..shader_constants import SSBO_LIGHTS, SSBO_SHADOW_MAPS
 from .options import Schema
 
 if TYPE_CHECKING:
@@ -143,7 +144,7 @@ class LightingMethod:
                 unit += 1
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
-            lb.ssbo.bind_to_storage_buffer(0)
+            lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
         d = self.delegate
         if d is not None and "u_ies" in prog and d.ies_texture is not None:
             d.ies_texture.use(unit)
@@ -151,7 +152,7 @@ class LightingMethod:
             unit += 1
         slots = frame.get(ShadowSlots)
         if slots.records is not None:
-            slots.records.bind_to_storage_buffer(1)
+            slots.records.bind_to_storage_buffer(SSBO_SHADOW_MAPS)
         if slots.atlas is not None and "u_shadow_atlas" in prog:
             slots.atlas.use(unit)
             cast(moderngl.Uniform, prog["u_shadow_atlas"]).value = unit

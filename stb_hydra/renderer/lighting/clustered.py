@@ -32,6 +32,7 @@ import numpy as np
 from ... import limits
 from ..gl import shader_library
 from ..records import InViewLights
+from ..shader_constants import SSBO_LIGHTS
 from .base import LightingMethod, Warn, program
 from .light_tree_build import (
     CellLists,
@@ -213,7 +214,7 @@ class ClusteredLighting(LightingMethod):
             cs = shader_library(ctx).compute(
                 "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            light_ssbo(frame).bind_to_storage_buffer(0)
+            light_ssbo(frame).bind_to_storage_buffer(SSBO_LIGHTS)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)

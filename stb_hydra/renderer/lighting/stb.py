@@ -45,6 +45,13 @@ from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform
 from ..graph import DERIVED, Rec, Resource, Tex
 from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
+from ..shader_constants import (
+    INTERLEAVE_FOOTPRINT_PX,
+    INTERLEAVE_QUADS_PER_SIDE,
+    QUAD_FWD_Y_SHIFT,
+    QUAD_LUT_SLOT_SHIFT,
+    TEX_UNIT_HIZ,
+)
 from ..tasks.base import Pass
 from .base import LightingMethod, Warn, program
 from .options import Opt, OptionError, Schema
@@ -125,9 +132,10 @@ class StbLighting(LightingMethod):
             pat = load_quad_patterns()
             tile = np.array(pat["tile_of_quad"], dtype=np.int32)
             slot = np.array(pat["slot_of_quad"], dtype=np.int32)
-            inv = (tile | (slot << 4)).astype(np.int32)  # row = qy, column = qx
+            inv = (tile | (slot << QUAD_LUT_SLOT_SHIFT)).astype(np.int32)  # row = qy, column = qx
             fwd = np.array(pat["quad_of_slot"], dtype=np.int32)  # (4, 64, 2)
-            fwd_packed = (fwd[..., 0] | (fwd[..., 1] << 8)).astype(np.int32)  # row = tile
+            # row = tile
+            fwd_packed = (fwd[..., 0] | (fwd[..., 1] << QUAD_FWD_Y_SHIFT)).astype(np.int32)
             t_inv = ctx.texture((16, 16), 1, inv.tobytes(), dtype="i4")
             t_fwd = ctx.texture((64, 4), 1, fwd_packed.tobytes(), dtype="i4")
             for t in (t_inv, t_fwd):
@@ -142,9 +150,10 @@ class StbLighting(LightingMethod):
         bw, bh = SLOT_BLOCKS[int(o["K"])]
         big = (math.ceil(width / bt), math.ceil(height / bt))
         if o["interleave"]:
-            fx, fy = math.ceil((width + 32) / 32), math.ceil((height + 32) / 32)
+            fp = INTERLEAVE_FOOTPRINT_PX
+            fx, fy = math.ceil((width + fp) / fp), math.ceil((height + fp) / fp)
             small = (2 * fx, 2 * fy)
-            qs = 8
+            qs = INTERLEAVE_QUADS_PER_SIDE
         else:
             s = int(o["small_tile"])
             small = (math.ceil((width + s) / s), math.ceil((height + s) / s))
@@ -216,7 +225,7 @@ class StbLighting(LightingMethod):
         self._common_uniforms(frame, prog)
         set_uniform(prog, "u_target_mode", TARGET_MODES[self.o["target"]])
         self.bind_common(frame, prog)
-        self._bind(frame, prog, 12, "u_hiz", hiz)
+        self._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
         self._pass(frame, prog, "stb_bigtile", g["bigtile"])
 
         # 2. small tiles

@@ -29,6 +29,13 @@ import numpy as np
 from ... import limits
 from ..gl import set_uniform, shader_library
 from ..records import LightBuffer
+from ..shader_constants import (
+    SSBO_CELL_EXTRA,
+    SSBO_CELL_HEADERS,
+    SSBO_CELL_LISTS,
+    SSBO_LIGHTS,
+    TEX_UNIT_HIZ,
+)
 from .base import LightingMethod, Warn, program
 from .options import Opt, Schema
 
@@ -36,10 +43,8 @@ if TYPE_CHECKING:
     from ..frame import FrameContext
     from ..gl_delegate import GLRenderDelegate
 
-#: First texture unit for the baselines' own textures (the shared ones stay below).
-FIRST_UNIT = 10
 #: SSBO bindings (0 = lights, 1 = shadow maps are shared).
-BIND_HEADERS, BIND_LISTS, BIND_EXTRA = 2, 3, 4
+BIND_HEADERS, BIND_LISTS, BIND_EXTRA = SSBO_CELL_HEADERS, SSBO_CELL_LISTS, SSBO_CELL_EXTRA
 
 OPTIONS = Schema(
     Opt("tile_cap", int, limits.TILED_CAP_DEFAULT, nullable=True,
@@ -185,13 +190,13 @@ class TiledLighting(LightingMethod):
             cs = shader_library(ctx).compute(
                 "tiled_cull.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
             )
-            light_ssbo(frame).bind_to_storage_buffer(0)
+            light_ssbo(frame).bind_to_storage_buffer(SSBO_LIGHTS)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)
             hiz = frame.buffers.textures[f"hiz{int(math.log2(self.tile))}"]
-            hiz.use(FIRST_UNIT)
-            set_shader_uniform(cs, "u_hiz", FIRST_UNIT)
+            hiz.use(TEX_UNIT_HIZ)
+            set_shader_uniform(cs, "u_hiz", TEX_UNIT_HIZ)
             set_shader_uniform(cs, "u_grid", (gx, gy))
             set_shader_uniform(cs, "u_tile_px", self.tile)
             set_shader_uniform(cs, "u_stride", stride)

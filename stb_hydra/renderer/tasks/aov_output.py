@@ -36,6 +36,7 @@ from ..graph import Imported, Rec, Resource, Tex
 from ..lighting import METHODS, debug_aov_names
 from ..lighting.stb import StbLighting
 from ..records import InViewLights, LightBuffer, SceneColor
+from ..shader_constants import SSBO_LIGHTS
 from .base import Pass
 from .color_correction import COLOR_SOURCES
 
@@ -200,5 +201,5 @@ class LightCountTask(Pass):
         bufs.textures["g_depth"].use(0)
         if "g_depth" in prog:
             cast(moderngl.Uniform, prog["g_depth"]).value = 0
-        ssbo.bind_to_storage_buffer(0)
+        ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
         draw_fullscreen(frame.ctx, prog, fbo, bufs.size)

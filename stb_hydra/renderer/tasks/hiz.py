@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from ..frame import FrameContext
 from ..gl import shader_library
 from ..graph import Resource, Size, Tex
+from ..shader_constants import IMAGE_UNIT_HIZ_DST
 from .base import Pass
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ class HiZTask(Pass):
             src.use(0)
             cs["u_src"].value = 0
             cs["u_from_depth"].value = 1 if k == 1 else 0
-            dst.bind_to_image(0, read=False, write=True)
+            dst.bind_to_image(IMAGE_UNIT_HIZ_DST, read=False, write=True)
             cs.run(math.ceil(dst.size[0] / 8), math.ceil(dst.size[1] / 8), 1)
             ctx.memory_barrier()
             src = dst
