@@ -16,16 +16,19 @@ from __future__ import annotations
 import posixpath
 import re
 import threading
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from importlib import resources
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import moderngl
+import numpy as np
 
 from .shader_constants import GLSL_CONSTANTS, constants_glsl
 
 if TYPE_CHECKING:
-    from importlib.resources.abc import Traversable
+    # importlib.resources.abc is 3.11+; importlib.abc.Traversable is the 3.10 spelling.
+    from importlib.abc import Traversable
 
 #: The package holding the GLSL (the checkout's top-level ``shaders/``).
 SHADER_PACKAGE = "stb_hydra.shaders"
@@ -47,7 +50,11 @@ def get_context(backend: str = "egl") -> moderngl.Context:
     with _lock:
         if _ctx is None:
             try:
-                _ctx = moderngl.create_standalone_context(backend=backend, require=430)
+                # moderngl's stub types ``backend`` as a dict; the runtime takes the name.
+                _ctx = moderngl.create_standalone_context(
+                    backend=backend,  # type: ignore[arg-type]
+                    require=430,
+                )
             except Exception as exc:  # noqa: BLE001 - report one clear line
                 raise GLError(
                     f"cannot create an OpenGL 4.3 context with backend '{backend}': {exc}"
@@ -152,7 +159,7 @@ class ShaderLibrary:
         self.compiled = 0
 
     @staticmethod
-    def _key(stages, defines) -> ProgramKey:
+    def _key(stages: Iterable[str], defines: Mapping[str, object] | None) -> ProgramKey:
         d = tuple(sorted((k, str(v)) for k, v in (defines or {}).items() if v is not False))
         return ProgramKey(tuple(stages), d)
 
@@ -198,13 +205,16 @@ def shader_library(ctx: moderngl.Context) -> ShaderLibrary:
     return lib
 
 
-def set_uniform(prog: moderngl.Program, name: str, value) -> None:
-    """Set a uniform if the (optimised) program still has it."""
+def set_uniform(
+    prog: moderngl.Program | moderngl.ComputeShader, name: str, value: object
+) -> None:
+    """Set a uniform if the (optimised) program still has it: numpy arrays are
+    written as bytes (float arrays as float32), anything else as ``.value``."""
     try:
-        u = prog[name]
+        u = cast(moderngl.Uniform, prog[name])
     except KeyError:
         return
-    if hasattr(value, "tobytes"):
+    if isinstance(value, (np.ndarray, np.generic)):
         u.write(value.astype("f4").tobytes() if value.dtype.kind == "f" else value.tobytes())
     else:
         u.value = value

@@ -30,7 +30,7 @@ import moderngl
 import numpy as np
 
 from ... import limits
-from ..gl import shader_library
+from ..gl import set_uniform, shader_library
 from ..records import InViewLights
 from ..shader_constants import SSBO_LIGHTS
 from .base import LightingMethod, Warn, program
@@ -52,7 +52,6 @@ from .tiled import (
     light_ssbo,
     parse_cap,
     read_stats,
-    set_shader_uniform,
     shade_direct,
 )
 
@@ -115,9 +114,9 @@ def fov_lights(
 def grid_uniforms(
     prog: moderngl.Program | moderngl.ComputeShader, grid: ClusterGrid
 ) -> None:
-    set_shader_uniform(prog, "u_grid", grid.tiles)
-    set_shader_uniform(prog, "u_tile_px", grid.tile)
-    set_shader_uniform(prog, "u_slices", grid.shader_params())
+    set_uniform(prog, "u_grid", grid.tiles)
+    set_uniform(prog, "u_tile_px", grid.tile)
+    set_uniform(prog, "u_slices", grid.shader_params())
 
 
 class ClusteredLighting(LightingMethod):
@@ -219,8 +218,8 @@ class ClusteredLighting(LightingMethod):
             lists.bind_to_storage_buffer(BIND_LISTS)
             stats.bind_to_storage_buffer(BIND_EXTRA)
             grid_uniforms(cs, grid)
-            set_shader_uniform(cs, "u_stride", stride)
-            set_shader_uniform(cs, "u_cap", stride)
+            set_uniform(cs, "u_stride", stride)
+            set_uniform(cs, "u_cap", stride)
             cull_uniforms(cs, frame)
             cs.run(gx, gy, gz)
             ctx.memory_barrier()

@@ -98,14 +98,6 @@ class SSBOPool:
         self.buffers.clear()
 
 
-def set_shader_uniform(
-    prog: moderngl.Program | moderngl.ComputeShader, name: str, value: object
-) -> None:
-    """``gl.set_uniform`` for a compute shader too: it only looks ``prog[name]`` up, but
-    its signature says Program (use it directly once it accepts ComputeShader)."""
-    set_uniform(prog, name, value)  # type: ignore[arg-type]
-
-
 def shade_direct(method: LightingMethod, frame: FrameContext) -> None:
     """No local lights in view: sun + ambient only (the reference's light-less path)."""
     prog = program(frame, "lighting_direct.frag", method.scene_defines(frame))
@@ -116,10 +108,10 @@ def shade_direct(method: LightingMethod, frame: FrameContext) -> None:
 def cull_uniforms(prog: moderngl.ComputeShader, frame: FrameContext) -> None:
     """Margins and the world -> view radius scale of ``tiled_cull.comp`` (the GPU twin
     of ``light_tree_build.widened_radius``)."""
-    set_shader_uniform(prog, "u_rel_margin", float(limits.CULL_RADIUS_REL_MARGIN))
-    set_shader_uniform(prog, "u_depth_margin", float(limits.CULL_DEPTH_REL_MARGIN))
+    set_uniform(prog, "u_rel_margin", float(limits.CULL_RADIUS_REL_MARGIN))
+    set_uniform(prog, "u_depth_margin", float(limits.CULL_DEPTH_REL_MARGIN))
     scale = np.linalg.norm(np.asarray(frame.view.view, dtype=np.float64)[:3, :3], 2)
-    set_shader_uniform(prog, "u_radius_scale", float(scale))
+    set_uniform(prog, "u_radius_scale", float(scale))
 
 
 def light_ssbo(frame: FrameContext) -> moderngl.Buffer:
@@ -196,11 +188,11 @@ class TiledLighting(LightingMethod):
             stats.bind_to_storage_buffer(BIND_EXTRA)
             hiz = frame.buffers.textures[f"hiz{int(math.log2(self.tile))}"]
             hiz.use(TEX_UNIT_HIZ)
-            set_shader_uniform(cs, "u_hiz", TEX_UNIT_HIZ)
-            set_shader_uniform(cs, "u_grid", (gx, gy))
-            set_shader_uniform(cs, "u_tile_px", self.tile)
-            set_shader_uniform(cs, "u_stride", stride)
-            set_shader_uniform(cs, "u_cap", stride)
+            set_uniform(cs, "u_hiz", TEX_UNIT_HIZ)
+            set_uniform(cs, "u_grid", (gx, gy))
+            set_uniform(cs, "u_tile_px", self.tile)
+            set_uniform(cs, "u_stride", stride)
+            set_uniform(cs, "u_cap", stride)
             cull_uniforms(cs, frame)
             cs.run(gx, gy, 1)
             ctx.memory_barrier()
