@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from pxr import Usd, UsdGeom
@@ -45,10 +46,30 @@ def read_camera(
     return cp
 
 
-def exposure_scale(prim: Usd.Prim, time: Usd.TimeCode) -> float:
-    """UsdGeomCamera's linear exposure scale (exposure, fStop, time, ISO, responsivity)."""
+def exposure_scale(
+    prim: Usd.Prim, time: Usd.TimeCode, warn: Callable[[str], None] | None = None
+) -> float:
+    """UsdGeomCamera's linear exposure scale (exposure, fStop, time, ISO, responsivity).
+    A scale that is not a finite positive float (e.g. ``exposure = 200``: 2^200
+    overflows) is replaced by 1 with a one-line ``warn``."""
+    cam = UsdGeom.Camera(prim)
     try:
-        s = float(UsdGeom.Camera(prim).ComputeLinearExposureScale(time))
-    except Exception:  # noqa: BLE001 - bad input must never crash
-        return 1.0
-    return s if math.isfinite(s) and s > 0 else 1.0
+        s = float(cam.ComputeLinearExposureScale(time))
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
+        why = f"could not be computed ({type(exc).__name__})"
+    else:
+        if math.isfinite(s) and s > 0:
+            return s
+        why = f"is {s:g}"
+    if warn is not None:
+        vals = []
+        for name, label in (("exposure", "exposure"), ("fStop", "fStop"),
+                            ("exposure:time", "time"), ("exposure:iso", "ISO"),
+                            ("exposure:responsivity", "responsivity")):
+            attr = prim.GetAttribute(name)
+            if attr and attr.HasAuthoredValue():
+                vals.append(f"{label} {attr.Get(time)}")
+        detail = f" ({', '.join(vals)})" if vals else ""
+        warn(f"camera <{prim.GetPath()}>: exposure scale {why}{detail}; using 1 "
+             "(no exposure)")
+    return 1.0

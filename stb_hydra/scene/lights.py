@@ -438,10 +438,13 @@ def _read_light_into(
         _warn(lp, ctx, "non-finite transform; light disabled")
         return
     radiance, normalize, ok = _read_radiance(lp, a, ctx)
-    ok &= _read_size(lp, a, ctx, world)
+    size_ok = _read_size(lp, a, ctx, world)
+    ok &= size_ok
     proj, area = _emission_and_area(lp, prim, ctx, world)
     if normalize and lp.type in prims.LOCAL_LIGHT_TYPES:
         radiance = _normalize_by_area(lp, ctx, radiance, area)
+    elif size_ok and proj <= 0.0 and lp.type in prims.LOCAL_LIGHT_TYPES:
+        _warn(lp, ctx, f"zero-area {lp.type} (size {_size_text(lp)}) emits nothing")
     ok &= _read_shaping(lp, prim, a, ctx)
     ok &= _set_intensity(lp, prim, a, ctx, radiance, proj, normalize)
     _read_shadows(lp, a, ctx)
@@ -453,6 +456,18 @@ def _read_light_into(
     ok &= _check_peak_intensity(lp, ctx)
     lp.valid = bool(ok)
     lp.enabled = bool(ok and visible)
+    if not ok:
+        lp.flux = 0.0  # a rejected light emits nothing (and 1e38 cd must not overflow float32)
+
+
+def _size_text(lp: LightPrim) -> str:
+    if lp.type == prims.RECT_LIGHT:
+        return f"{lp.width:g} x {lp.height:g} m"
+    if lp.type == prims.CYLINDER_LIGHT:
+        return f"radius {lp.radius:g} m, length {lp.length:g} m"
+    if lp.type == prims.MESH_LIGHT:
+        return "mesh area 0"
+    return f"radius {lp.radius:g} m"
 
 
 # --- reader steps -------------------------------------------------------------------------

@@ -161,7 +161,10 @@ class CameraDataSource(_DataSource):
         return read_camera(self.entry.prim, idx.time, idx.world_matrix(self.entry), idx.mpu)
 
     def exposure_scale(self) -> float:
-        return exposure_scale(self.entry.prim, self.index.time)
+        idx, path = self.index, self.entry.path
+        return exposure_scale(
+            self.entry.prim, idx.time, lambda msg: idx.warn_once("exposure:" + path, msg)
+        )
 
 
 class MaterialDataSource(_DataSource):
@@ -233,13 +236,14 @@ class StageSceneIndex(SceneIndex):
         self._frame_is_identity = bool(np.array_equal(self.render_from_stage, np.eye(4)))
         self.mpu = float(np.linalg.norm(self.render_from_stage[0, :3]))
         self.light_ctx = LightReadContext(
-            self.stage, self.render_from_stage, self._warn, self._warn_once
+            self.stage, self.render_from_stage, self._warn, self.warn_once
         )
 
     def _warn(self, msg: str) -> None:
         self.warnings.append(msg)
 
-    def _warn_once(self, key: str, msg: str) -> None:
+    def warn_once(self, key: str, msg: str) -> None:
+        """Add ``msg`` to :attr:`warnings` the first time ``key`` warns."""
         if key not in self._warned_once:
             self._warned_once.add(key)
             self.warnings.append(msg)
