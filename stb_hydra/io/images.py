@@ -20,7 +20,6 @@ import json
 import math
 import os
 import re
-import stat
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -28,6 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import OpenImageIO as oiio
+
+from .files import new_file_mode
 
 if TYPE_CHECKING:
     from stb_hydra.color.ocio import ColorPipeline
@@ -286,19 +287,6 @@ def _default_pipeline(ocio_env: str) -> ColorPipeline:
     return ColorPipeline()
 
 
-def _current_umask() -> int:
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("Umask:"):
-                    return int(line.split()[1], 8)
-    except (OSError, ValueError):
-        pass
-    mask = os.umask(0o022)  # not thread-safe; only where /proc is unavailable
-    os.umask(mask)
-    return mask
-
-
 def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
     directory = path.parent
     try:
@@ -322,11 +310,7 @@ def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
             closed = out.close()
         if not closed:
             raise ImageWriteError(path, out.geterror() or "OIIO close failed")
-        try:
-            mode = stat.S_IMODE(path.stat().st_mode)
-        except FileNotFoundError:
-            mode = 0o666 & ~_current_umask()
-        os.chmod(tmp, mode)  # mkstemp creates 0600
+        os.chmod(tmp, new_file_mode(path))  # mkstemp creates 0600
         os.replace(tmp, path)
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
