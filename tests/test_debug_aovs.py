@@ -12,6 +12,7 @@ import pytest
 from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.io.debug_views import (
+    LEGEND_ROWS,
     hash_colors,
     lightcount_heatmap,
     write_debug_aov,
@@ -259,8 +260,9 @@ def test_cli_writes_debug_aovs_beside_the_image(tmp_path):
     assert r.returncode == 0, r.stderr
     for name in DEBUG_AOVS:
         png, meta = read_image(tmp_path / f"img.{name}.png")
-        assert png.shape[:2] == (54, 96), name
-        assert meta["stb:aov"] == name
+        # the view, then its colour scale (io.debug_views.legend_strip)
+        assert png.shape[:2] == (54 + LEGEND_ROWS, 96), name
+        assert meta["stb:aov"] == name and meta["stb:legendRows"] == LEGEND_ROWS
     counts, _ = read_image(tmp_path / "img.lightcount.exr")
     assert counts.shape == (54, 96, 1) and counts.max() >= 1
 

@@ -4,6 +4,10 @@ CPU side of ``renderer/tasks/aov_output.py`` (which only reads the views back):
 light-index hash colours (twin of ``light_color()`` in ``shaders/debug_*.frag``),
 the light-count heat map (log2 scale of matplotlib's ``turbo``), its legend, and
 ``write_debug_aov`` (PNG, plus an EXR of raw counts for ``lightcount``).
+
+Every debug PNG carries its colour scale: a strip of :data:`LEGEND_ROWS` rows below
+the view (:func:`legend_strip`) with the scale's colours and its min/max labelled
+(the view itself keeps its size and pixels; ``stb:legendRows`` in the metadata).
 """
 
 from __future__ import annotations
@@ -79,6 +83,63 @@ def write_lightcount_legend(path: str | os.PathLike[str]) -> Path:
     return out
 
 
+#: Rows of the colour-scale strip appended below each debug view's PNG.
+LEGEND_ROWS = 28
+
+
+def _legend_spec(name: str) -> tuple[np.ndarray, str, str, str]:
+    """(colours of the scale, left to right; min label; max label; caption)."""
+    if name == "lightcount":
+        top = np.log2(LIGHTCOUNT_SCALE_MAX)
+        counts = np.concatenate([np.zeros(16), np.exp2(np.linspace(0.0, top, 240))])
+        return (lightcount_heatmap(counts[None, :])[0], "0",
+                f">={LIGHTCOUNT_SCALE_MAX}", "lights in range, log2 (black = 0)")
+    if name == "shadowterms":
+        g = np.linspace(0.0, 1.0, 256, dtype=np.float32)
+        return np.repeat(g[:, None], 3, 1), "0", "1", "shadow x cone x IES term (0 = dark)"
+    if name == "bigtile":
+        # dark grey = empty slot, then brightness 0.25..1 = weight within the tile
+        g = np.concatenate([[0.06] * 16, np.linspace(0.25, 1.0, 240)]).astype(np.float32)
+        return (np.repeat(g[:, None], 3, 1), "min", "max",
+                "slot weight in its tile, log2 (dark = empty; hue = light)")
+    if name == "smalltile":
+        c = np.concatenate([np.zeros((16, 3), np.float32),
+                            np.repeat(hash_colors(np.arange(15)), 16, axis=0)])
+        return c, "empty", "light hash", "colour = hash of the light index"
+    g = np.linspace(0.0, 1.0, 256, dtype=np.float32)
+    return np.repeat(g[:, None], 3, 1), "0", "1", name
+
+
+def legend_strip(name: str, width: int) -> np.ndarray:
+    """(LEGEND_ROWS, width, 3) float32 display-referred colour scale of debug view
+    ``name``: the scale's colours left to right (min to max) over the labels."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    colors, lo, hi, caption = _legend_spec(name)
+    width = max(int(width), 1)
+    rows = LEGEND_ROWS
+    out = np.zeros((rows, width, 3), np.float32)
+    bar_rows = slice(2, 11)
+    x = np.rint(np.linspace(0.0, len(colors) - 1.0, width)).astype(np.intp)  # min ... max
+    out[bar_rows] = colors[x][None, :, :]
+    fig = Figure(figsize=(width / 100.0, rows / 100.0), dpi=100, facecolor="black")
+    FigureCanvasAgg(fig)
+    kw = {"color": "white", "fontsize": 6.5, "va": "bottom", "family": "DejaVu Sans"}
+    y = 1.0 / rows
+    fig.text(1.0 / width, y, lo, ha="left", **kw)
+    fig.text(1.0 - 1.0 / width, y, hi, ha="right", **kw)
+    if width >= 320:
+        fig.text(0.5, y, caption, ha="center", **kw)
+    fig.canvas.draw()
+    text = np.asarray(fig.canvas.buffer_rgba(), dtype=np.float32)[..., :3] / 255.0
+    h = min(text.shape[0], rows)
+    w = min(text.shape[1], width)
+    label_rows = slice(11, rows)
+    out[label_rows, :w] = np.maximum(out[label_rows, :w], text[11:h, :w])
+    return out
+
+
 def debug_aov_image(name: str, pixels: np.ndarray) -> np.ndarray:
     """A debug AOV as a display-referred (h, w, 3) image in [0, 1]."""
     if name == "lightcount":
@@ -94,16 +155,19 @@ def write_debug_aov(
     metadata: Mapping[str, Any] | None = None,
 ) -> list[Path]:
     """Write debug AOV ``name`` next to colour image ``path``: ``<stem>.<name>.png``
-    (8-bit, display-referred) and for ``lightcount`` also ``<stem>.lightcount.exr``
-    (float counts, channel Y). Returns the written paths."""
+    (8-bit, display-referred: the view, then :data:`LEGEND_ROWS` rows of its colour
+    scale with min/max labelled) and for ``lightcount`` also ``<stem>.lightcount.exr``
+    (float counts, channel Y, no legend). Returns the written paths."""
     from .images import aov_path, write_image
 
-    meta = {"stb:aov": name, **(metadata or {})}
+    meta = {"stb:aov": name, **(metadata or {}), "stb:legendRows": LEGEND_ROWS}
     exr = aov_path(path, name)
     png = exr.with_suffix(".png")
     if name == "lightcount":
         meta["stb:lightcountScaleMax"] = LIGHTCOUNT_SCALE_MAX
-    out = [write_image(png, debug_aov_image(name, pixels), metadata=meta, display_referred=True)]
+    view = debug_aov_image(name, pixels)
+    shown = np.concatenate([view, legend_strip(name, view.shape[1])], axis=0)
+    out = [write_image(png, shown, metadata=meta, display_referred=True)]
     if name == "lightcount":
         counts = np.asarray(pixels, dtype=np.float32)
         out.append(
