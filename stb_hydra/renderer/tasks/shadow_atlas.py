@@ -309,7 +309,12 @@ class ShadowAtlasTask(Pass):
             {
                 "shadow_maps_updated": st.maps_updated,
                 "shadow_texels_rendered": st.texels_rendered,
-                "shadow_budget_texels": st.budget_texels,
+                # None: offline, unlimited (every map captured before the frame)
+                "shadow_budget_texels": (
+                    None
+                    if st.budget_texels >= limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
+                    else st.budget_texels
+                ),
                 "shadow_statics_pending": st.statics_pending,
                 "shadow_staleness_mean": st.static_wait.mean,
                 "shadow_staleness_p95": st.static_wait.p95,
