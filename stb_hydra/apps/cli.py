@@ -1,4 +1,9 @@
-"""The ``stb`` command: one verb per module in ``stb_hydra.apps``."""
+"""The ``stb`` command: one verb per module in ``stb_hydra.apps``.
+
+Every verb runs inside a :class:`~stb_hydra.apps.common.Reporter` (``args.reporter``):
+warnings one line each on stderr, deduplicated, with a count at the end; USD's own
+diagnostics are trapped and reported the same way (one line per cause).
+"""
 
 from __future__ import annotations
 
@@ -14,6 +19,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="stb",
         description="stb_hydra: USD scenes with many lights, Stochastic Tile-Based lighting.",
     )
+    ap.add_argument("--version", action="version", version=_version())
     sub = ap.add_subparsers(dest="verb", required=True)
     for verb in VERBS:
         try:
@@ -24,11 +30,32 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .. import __version__
+
+    try:
+        usd = version("usd-core")
+    except PackageNotFoundError:  # a USD build of one's own, not the wheel
+        from pxr import Usd
+
+        usd = ".".join(str(v) for v in Usd.GetVersion())
+    return f"stb {__version__} (usd-core {usd}, Python {sys.version.split()[0]})"
+
+
 def main(argv: list[str] | None = None) -> int:
+    from .common import Reporter
+
     ap = build_parser()
     args = ap.parse_args(argv)
+    rep = Reporter(f"stb {args.verb}", quiet=bool(getattr(args, "quiet", False)))
+    args.reporter = rep
     try:
-        return int(args.func(args) or 0)
+        with rep:
+            code = int(args.func(args) or 0)
+            rep.finish()
+        return code
     except KeyboardInterrupt:
         print("stb: interrupted", file=sys.stderr)
         return 130

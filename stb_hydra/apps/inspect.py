@@ -22,11 +22,16 @@ def _num(x: float) -> float | None:
     return round(x, 6) if math.isfinite(x) else None
 
 
-def inspect_stage(stage, time: float | None = None) -> dict:
-    """The ``stb inspect`` report as a JSON-ready dict (schema in the README)."""
+def inspect_stage(stage, time: float | None = None,
+                  usd_warnings: list[str] | None = None) -> dict:
+    """The ``stb inspect`` report as a JSON-ready dict (schema in the README).
+    ``time``: ``"default"`` when the stage is read at its default time (no time given
+    and no authored time range). ``usd_warnings``: USD's own diagnostics (one line
+    per cause) to list first among the warnings."""
     from ..renderer.delegate import RenderDelegate
     from ..renderer.render_index import RenderIndex
     from ..scene import prims
+    from ..scene.stage_io import time_label
     from ..scene.stage_scene_index import StageSceneIndex
 
     si = StageSceneIndex(stage, time)
@@ -83,7 +88,7 @@ def inspect_stage(stage, time: float | None = None) -> dict:
     total_flux = float(np.sum([lr["flux"] or 0.0 for lr in lights]))
     return {
         "stage": stage.GetRootLayer().identifier,
-        "time": None if si.time.IsDefault() else float(si.time.GetValue()),
+        "time": time_label(si.time),
         "metersPerUnit": si.mpu,
         "prims": counts,
         "lights": lights,
@@ -93,7 +98,9 @@ def inspect_stage(stage, time: float | None = None) -> dict:
             "enabled": sum(1 for lr in lights if lr["enabled"]),
             "total_flux_lm": round(total_flux, 3),
         },
-        "warnings": list(dict.fromkeys(si.warnings + ri.delegate.warnings)),
+        "warnings": list(
+            dict.fromkeys([*(usd_warnings or ()), *si.warnings, *ri.delegate.warnings])
+        ),
     }
 
 
@@ -149,11 +156,18 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    import os
+
     try:
         stage = open_stage(args.scene)
     except CliError as exc:
         return fail(str(exc))
-    rep = inspect_stage(stage, args.time)
+    reporter = getattr(args, "reporter", None)
+    base = os.path.dirname(os.path.abspath(args.scene))
+    usd = reporter.take_usd(base) if reporter is not None else []
+    rep = inspect_stage(stage, args.time, usd)
+    if reporter is not None:  # diagnostics of the scene read itself
+        rep["warnings"] = list(dict.fromkeys(rep["warnings"] + reporter.take_usd()))
     if args.json:
         json.dump(rep, sys.stdout, indent=2)
         sys.stdout.write("\n")
