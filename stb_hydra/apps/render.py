@@ -4,8 +4,13 @@
   exposure applied, display exposure not), ``.png/.jpg/.tif`` display-referred
   through OCIO (PNG/JPG on the GPU from OCIO's shader, TIFF 16-bit on the CPU).
 * ``####`` in ``OUTPUT`` is the frame number (``--frames 1:48x2``).
-* Errors (unknown camera, unwritable output, unsupported extension, empty or
-  unreadable stage) print one line and exit 2; files are written atomically.
+* Errors (unknown camera, unwritable output or ``--stats`` path, unsupported
+  extension, empty or unreadable stage, a size beyond the OpenGL context's limits)
+  print one line and exit 2 before anything is rendered; files are written
+  atomically (mode 0666 minus the umask, like any new file).
+* Warnings about the scene (and USD's own diagnostics) go to stderr, one line each,
+  deduplicated, with a count at the end; ``--quiet`` silences them and the progress
+  bar (frames, accumulated samples, shadow maps captured; shown on a terminal only).
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ import sys
 import time as _time
 
 from .. import limits
-from .common import EXIT_ERROR, EXIT_OK, CliError, fail, open_stage, parse_options
+from .common import EXIT_ERROR, EXIT_OK, CliError, Reporter, fail, open_stage, parse_options
 
 
 def parse_frames(spec: str) -> list[float]:
@@ -49,7 +54,8 @@ def add_parser(sub) -> None:
     p.add_argument("--camera", help="camera prim path (default: the first camera, else a free one)")
     p.add_argument("--frames", help="F, A:B or A:BxS (default: the stage's start time)")
     p.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
-    p.add_argument("--height", type=int, default=0, help="image height (default: camera aspect)")
+    p.add_argument("--height", type=int, default=None,
+                   help="image height in pixels (default: from the camera aspect)")
     p.add_argument(
         "--lighting",
         default="reference",
@@ -100,7 +106,9 @@ def add_parser(sub) -> None:
         default="pcf",
         help="local shadow filter: 4-tap gather PCF, or stochastic PCF",
     )
-    p.add_argument("--verbose", "-v", action="store_true", help="print GL renderer and warnings")
+    p.add_argument("--verbose", "-v", action="store_true", help="print the GL renderer")
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="no warnings, no progress bar, no messages (errors still print)")
     p.add_argument(
         "--print-graph",
         action="store_true",
@@ -111,37 +119,49 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    rep = getattr(args, "reporter", None) or Reporter("stb render", quiet=args.quiet)
     try:
-        return _run(args)
+        return _run(args, rep)
     except CliError as exc:
         return fail(str(exc))
 
 
-def _run(args: argparse.Namespace) -> int:
+def _run(args: argparse.Namespace, rep: Reporter) -> int:
     aovs = _check_settings(args)
     frames = _check_outputs(args)
     stage = open_stage(args.scene)
+    rep.drain_usd(os.path.dirname(os.path.abspath(args.scene)))
     pipeline = _color_pipeline(args)
     settings = _render_settings(args)
     eng = _build_engine(stage, settings, pipeline, frames[0])
-    if args.verbose:
-        print(f"stb render: {eng.renderer_info}", file=sys.stderr)
-    ext = os.path.splitext(args.output)[1].lower()
-    want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
-    eng.request_aovs(want)
+    try:
+        _check_image_size(eng)
+        if args.verbose:
+            rep.say(f"stb render: {eng.renderer_info}")
+        ext = os.path.splitext(args.output)[1].lower()
+        want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
+        eng.request_aovs(want)
+    except BaseException:
+        eng.release()
+        raise
     if args.print_graph:
         print(eng.describe())
         eng.release()
         return EXIT_OK
+    rep.warn_all(eng.warnings)
+    _warn_no_lights(eng, args, rep)
     stats = _stats_header(args, eng, settings, pipeline)
-    written = _render_frames(args, eng, frames, aovs, ext, pipeline, stats)
-    return _finish(args, stats, written)
+    written = _render_frames(args, eng, frames, aovs, ext, pipeline, stats, rep)
+    return _finish(args, stats, written, rep)
 
 
 def _check_settings(args: argparse.Namespace) -> list[str]:
     """Argument checks before any work; the requested AOV names."""
-    if args.width <= 0 or args.height < 0:
-        raise CliError("--width and --height must be positive")
+    if args.width <= 0:
+        raise CliError(f"--width must be a positive number of pixels, got {args.width}")
+    if args.height is not None and args.height <= 0:
+        raise CliError(f"--height must be a positive number of pixels, got {args.height} "
+                       "(leave it out to follow the camera aspect)")
     if args.accumulate < 1:
         raise CliError("--accumulate must be >= 1")
     aovs = [a.strip() for a in args.aov.split(",") if a.strip()]
@@ -170,7 +190,41 @@ def _check_outputs(args: argparse.Namespace) -> list[float | None]:
     frames: list[float | None] = parse_frames(args.frames) if args.frames else [None]
     if len(frames) > 1 and not has_frame_placeholder(args.output):
         raise CliError("several --frames need a frame placeholder (####) in OUTPUT")
+    if args.stats:
+        from ..io.files import FileWriteError, check_file_path
+
+        try:
+            check_file_path(args.stats, "--stats")
+        except FileWriteError as exc:
+            raise CliError(str(exc)) from None
     return frames
+
+
+def max_image_size(ctx) -> int:
+    """The largest image side this OpenGL context renders: the smallest of its
+    texture, renderbuffer, framebuffer and viewport limits."""
+    info = ctx.info
+    sides = [
+        info.get("GL_MAX_TEXTURE_SIZE"),
+        info.get("GL_MAX_RENDERBUFFER_SIZE"),
+        info.get("GL_MAX_FRAMEBUFFER_WIDTH"),
+        info.get("GL_MAX_FRAMEBUFFER_HEIGHT"),
+        *(info.get("GL_MAX_VIEWPORT_DIMS") or ()),
+    ]
+    return int(min(int(v) for v in sides if v))
+
+
+def _check_image_size(eng) -> None:
+    """``--width``/``--height`` (the height resolved from the camera aspect) within
+    the context's limits, before any render buffer is allocated."""
+    limit = max_image_size(eng.ctx)
+    w, h = eng.settings.width, eng.settings.height
+    for flag, v in (("--width", w), ("--height", h)):
+        if v > limit:
+            raise CliError(
+                f"{flag} {v} exceeds this OpenGL context's largest image side {limit} "
+                f"(image {w}x{h})"
+            )
 
 
 def _color_pipeline(args: argparse.Namespace):
@@ -208,7 +262,7 @@ def _render_settings(args: argparse.Namespace):
         )
     return RenderSettings(
         width=args.width,
-        height=args.height or None,
+        height=args.height,
         camera=args.camera,
         lighting=args.lighting,
         seed=args.seed,
@@ -249,37 +303,122 @@ def _stats_header(args: argparse.Namespace, eng, settings, pipeline) -> dict:
             "display": pipeline.display,
             "view": pipeline.view,
             "exposure": pipeline.exposure,
+            # null: offline, every shadow map captured before each frame
+            "shadow_budget": settings.shadow_budget,
         },
         "frames": [],
     }
 
 
-def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
-                   stats: dict) -> int:
-    """Render and write every frame (``stats["frames"]``, then ``stats["warnings"]``);
-    releases the engine. Returns the number of frames written."""
-    from ..io.images import ImageWriteError, frame_path
-    from ..renderer.engine import RenderError
+def _warn_no_lights(eng, args: argparse.Namespace, rep: Reporter) -> None:
+    """One warning when nothing lights the stage (the image would be black)."""
+    lights = [sp.light for sp in eng.delegate.lights.values() if sp.light is not None]
+    if any(lp.enabled for lp in lights) or args.ambient > 0:
+        return
+    why = (f"none of its {len(lights)} lights is enabled" if lights
+           else "the stage has no lights")
+    rep.warn(f"{why}: the image shows unlit (black) geometry; add a light or --ambient")
 
-    progress = None
-    if len(frames) > 1:
+
+def _warn_empty_view(eng, rep: Reporter) -> None:
+    """One warning when the camera sees no geometry (coverage = colour alpha)."""
+    res = eng.aovs
+    img = res.get("color")
+    if img is None or img.ndim != 3 or img.shape[2] < 4:
+        return
+    if not (img[..., 3] > 0).any():
+        cam = eng.camera_path or "the free camera"
+        rep.warn(f"camera {cam} sees no geometry: the image is background only")
+
+
+class _Progress:
+    """The progress bar (stderr, a terminal only; none with ``--quiet``): accumulated
+    samples of all frames, with the frame and the shadow maps captured so far."""
+
+    def __init__(self, eng, frames: int, samples: int, rep: Reporter) -> None:
         from tqdm import tqdm
 
-        progress = tqdm(total=len(frames), unit="frame", disable=None, file=sys.stderr)
+        self.frames = frames
+        self.frame = 0
+        self.maps = 0
+        self.bar = tqdm(
+            total=frames * samples,
+            unit="sample",
+            desc="stb render",
+            file=sys.stderr,
+            disable=True if rep.quiet else None,  # None: off when stderr is not a tty
+            dynamic_ncols=True,
+        )
+        self.rep = rep
+        if not self.bar.disable:
+            rep.bar = self.bar
+        # Engine.render(time) draws its accumulated samples through the public
+        # render_frame; counting them there moves the bar within a frame.
+        inner = eng.render_frame
+
+        def render_frame(*a, **kw):
+            fr = inner(*a, **kw)
+            self.sample(fr)
+            return fr
+
+        eng.render_frame = render_frame
+
+    def start_frame(self, index: int) -> None:
+        self.frame = index + 1
+        self._postfix()
+        if not self.bar.disable:
+            self.bar.refresh()
+
+    def sample(self, frame) -> None:
+        self.maps += int(frame.stats.get("shadow_maps_updated", 0) or 0)
+        self.bar.update(1)
+        self._postfix()
+
+    def skip(self, samples: int) -> None:
+        self.bar.update(samples)
+
+    def _postfix(self) -> None:
+        if not self.bar.disable:
+            self.bar.set_postfix_str(
+                f"frame {self.frame}/{self.frames}, shadow maps {self.maps}", refresh=False
+            )
+
+    def close(self) -> None:
+        self.bar.close()
+        self.rep.bar = None
+
+
+def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
+                   stats: dict, rep: Reporter) -> int:
+    """Render and write every frame (``stats["frames"]``, then ``stats["warnings"]``);
+    releases the engine. Returns the number of frames written."""
+    from ..io.images import ImageWriteError, frame_path, has_frame_placeholder
+    from ..renderer.engine import RenderError
+    from ..scene.stage_io import time_label
+
+    samples = max(1, int(eng.settings.accumulate))
+    progress = _Progress(eng, len(frames), samples, rep)
     written = 0
+    skipped: list[str] = []
     try:
-        for fr in frames:
-            out = frame_path(args.output, fr) if fr is not None else args.output
+        for i, fr in enumerate(frames):
+            # one frame may be written to a plain OUTPUT (no ####)
+            numbered = fr is not None and has_frame_placeholder(args.output)
+            out = frame_path(args.output, fr) if numbered else args.output
             if args.skip_existing and os.path.exists(out):
-                if progress:
-                    progress.update(1)
+                skipped.append(out)
+                progress.skip(samples)
                 continue
+            progress.start_frame(i)
             t0 = _time.perf_counter()
             try:
                 frame = eng.render(fr)
             except RenderError as exc:
                 raise CliError(str(exc)) from None
             wall = (_time.perf_counter() - t0) * 1e3
+            rep.warn_all(eng.warnings)
+            rep.drain_usd()
+            _warn_empty_view(eng, rep)
             meta = {
                 "stb:camera": stats["settings"]["camera"],
                 "stb:frame": "default" if fr is None else fr,
@@ -290,33 +429,41 @@ def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
             written += 1
             stats["frames"].append(
                 {
-                    "frame": fr,
+                    # the time code rendered: a number, or "default" for a stage
+                    # without a time range rendered without --frames
+                    "frame": time_label(eng.scene_index.time),
                     "output": out,
                     "wall_ms": round(wall, 3),
                     "timings_ms": {k: round(v, 3) for k, v in eng.timings.frames[-1].items()},
-                    **{k: v for k, v in frame.stats.items() if isinstance(v, (int, float, bool))},
+                    **{k: v for k, v in frame.stats.items()
+                       if v is None or isinstance(v, (int, float, bool))},
                 }
             )
-            if progress:
-                progress.update(1)
     except ImageWriteError as exc:
         raise CliError(str(exc)) from None
     finally:
-        if progress:
-            progress.close()
-        warnings = list(eng.warnings)
+        progress.close()
         eng.release()
-    stats["warnings"] = warnings
+    if skipped:
+        names = ", ".join(os.path.basename(p) for p in skipped[:3])
+        more = f" ... {os.path.basename(skipped[-1])}" if len(skipped) > 3 else ""
+        rep.say(f"stb render: --skip-existing skipped {len(skipped)} of {len(frames)} "
+                f"frame{'s' if len(frames) != 1 else ''} (files exist: {names}{more})")
+    stats["warnings"] = list(rep.lines)
     return written
 
 
-def _finish(args: argparse.Namespace, stats: dict, written: int) -> int:
-    """Warnings (``--verbose``), the ``--stats`` file and the exit code."""
-    if args.verbose:
-        for w in stats["warnings"]:
-            print(f"warning: {w}", file=sys.stderr)
+def _finish(args: argparse.Namespace, stats: dict, written: int, rep: Reporter) -> int:
+    """The ``--stats`` file and the exit code (warnings were printed as found)."""
     if args.stats:
-        _write_json_atomic(args.stats, stats)
+        from ..io.files import FileWriteError, write_text_atomic
+
+        try:
+            write_text_atomic(
+                args.stats, json.dumps(stats, indent=2, allow_nan=False, default=str) + "\n"
+            )
+        except FileWriteError as exc:
+            raise CliError(str(exc)) from None
     if written == 0 and not args.skip_existing:
         return EXIT_ERROR
     return EXIT_OK
@@ -343,21 +490,3 @@ def _write_outputs(eng, out, aovs, ext, pipeline, meta) -> None:
             write_debug_aov(out, a, res[a], metadata=meta)
             continue
         write_aov(out, a, res[a], metadata=meta)
-
-
-def _write_json_atomic(path: str, data: dict) -> None:
-    import tempfile
-
-    d = os.path.dirname(os.path.abspath(path)) or "."
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=".stats.", suffix=".json", dir=d)
-    except OSError as exc:
-        raise CliError(f"cannot write '{path}': {exc.strerror}") from None
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=2, allow_nan=False, default=str)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
