@@ -1,9 +1,11 @@
-"""``stb validate PATH... [--json FILE] [--html FILE] [--thumbnails] [--jobs N]
-[--rules ...] [--fail-on error|warning]``: asset-library light validation.
+"""``stb validate PATH... [--library-root DIR] [--json FILE] [--html FILE] [--thumbnails]
+[--jobs N] [--rules ...] [--fail-on error|warning]``: asset-library light validation.
 
 Modelled on ``usdchecker``: OpenUSD's built-in UsdValidation validators plus ours
-(keyword ``stb``) on every ``.usd/.usda/.usdc/.usdz`` file found. Each PATH directory
-(or a file's directory) is the library root that asset paths must stay inside.
+(keyword ``stb``) on every ``.usd/.usda/.usdc/.usdz`` file found. Asset paths must stay
+inside the library root: ``--library-root DIR`` (every PATH must lie inside it: e.g.
+``stb validate usd_scenes/prefabs --library-root usd_scenes``, whose prefabs share
+``usd_scenes/ies``), else each PATH directory (or a file's directory).
 Exit codes: 0 clean, 1 findings at or above ``--fail-on``, 2 could not run.
 Rules, JSON schema and thresholds: docs/VALIDATE.md.
 """
@@ -21,13 +23,25 @@ from .common import EXIT_ERROR, EXIT_FINDINGS, EXIT_OK, CliError, fail
 _EXTS = (".usd", ".usda", ".usdc", ".usdz")
 
 
-def collect_inputs(paths: list[str]) -> list[tuple[str, str]]:
-    """(file, library root) for every USD file under PATHs, sorted, deduplicated."""
+def collect_inputs(paths: list[str], library_root: str | None = None) -> list[tuple[str, str]]:
+    """(file, library root) for every USD file under PATHs, sorted, deduplicated.
+    ``library_root``: the one root of every file (each PATH must lie inside it);
+    default: each PATH directory, or a file's directory."""
     out: dict[str, str] = {}
+    lib = None
+    if library_root is not None:
+        lib_path = Path(library_root)
+        if not lib_path.is_dir():
+            raise CliError(f"--library-root '{library_root}' is not a directory")
+        lib = str(lib_path.resolve())
     for arg in paths:
         p = Path(arg)
+        if lib is not None and p.exists():
+            real = str(p.resolve())
+            if os.path.commonpath([real, lib]) != lib:
+                raise CliError(f"'{arg}' is outside --library-root '{library_root}'")
         if p.is_dir():
-            root = str(p.resolve())
+            root = lib or str(p.resolve())
             for dirpath, dirnames, files in os.walk(p):
                 dirnames.sort()
                 for name in sorted(files):
@@ -36,7 +50,7 @@ def collect_inputs(paths: list[str]) -> list[tuple[str, str]]:
         elif p.is_file():
             if not p.name.lower().endswith(_EXTS):
                 raise CliError(f"'{arg}' is not a USD file ({', '.join(_EXTS)})")
-            out.setdefault(str(p.resolve()), str(p.resolve().parent))
+            out.setdefault(str(p.resolve()), lib or str(p.resolve().parent))
         else:
             raise CliError(f"cannot read '{arg}': no such file or directory")
     return sorted(out.items())
@@ -57,6 +71,10 @@ def add_parser(sub) -> None:
         description=__doc__.split("\n\n")[1] if __doc__ else None,
     )
     p.add_argument("paths", nargs="+", metavar="PATH", help="USD file or directory to walk")
+    p.add_argument("--library-root", metavar="DIR",
+                   help="the library's root directory: asset paths (references, IES "
+                   "files, textures) must resolve inside it; every PATH must lie inside "
+                   "it (default: each PATH directory, or a file's directory)")
     p.add_argument("--json", metavar="FILE", help="write the JSON report")
     p.add_argument("--html", metavar="FILE", help="write an HTML report (one row per asset)")
     p.add_argument("--thumbnails", action="store_true",
@@ -83,7 +101,7 @@ def main(args: argparse.Namespace) -> int:
             raise CliError(f"--jobs must be >= 0, got {args.jobs}")
         _check_output(args.json, "JSON report")
         _check_output(args.html, "HTML report")
-        tasks = collect_inputs(args.paths)
+        tasks = collect_inputs(args.paths, args.library_root)
         if not tasks:
             raise CliError("no USD files (.usd, .usda, .usdc, .usdz) found in "
                            + ", ".join(f"'{p}'" for p in args.paths))
