@@ -1,7 +1,10 @@
-"""The flat Python API (Mitsuba style)::
+"""The flat Python API (Mitsuba style), run from a checkout::
 
     import stb_hydra
-    rgb = stb_hydra.render("scene.usda", width=256, height=144)          # (h, w, 3) float32
+    from pxr import Usd
+
+    rgb = stb_hydra.render("usd_scenes/default.usda", width=256, height=144)  # (h, w, 3)
+    stage = Usd.Stage.Open("usd_scenes/default.usda")
     rgb = stb_hydra.render(stage, lighting="sun", time=12, accumulate=4)
 
 Values are scene-linear radiance (nits) in linear Rec.709, times the camera's
