@@ -1,14 +1,23 @@
 // STB lighting: per pixel, its small tile's STB_N samples: BRDF x light colour
 // and shape (emission model, focus tint, IES scale) / d^2 x the quad's shadow
 // term x sample weight; plus sun, dome and emission. The cost does not depend
-// on the number of lights.
+// on the number of lights. A sample whose quad term does not stand for this pixel
+// (split bit set by stb_shadow.frag at depth edges and creases) gets its term
+// evaluated here, for this pixel. STB_UNIT_TERMS: every term is 1 (no shadows,
+// cones or IES among the lights in view; the term pass did not run).
 #include "common/gbuffer.glsl"
 #include "common/sun.glsl"
 #include "common/lights.glsl"
+#include "common/shadow.glsl"
 #include "common/tiles.glsl"
 
 uniform usampler2D u_smalltile;
+#ifndef STB_UNIT_TERMS
 uniform sampler2D u_terms;
+#ifndef STB_PIXEL_TERMS
+uniform usampler2D u_term_split;
+#endif
+#endif
 
 layout(location = 0) out vec4 o_color;
 
@@ -25,20 +34,31 @@ void main() {
     ivec2 st; int slot;
     quad_owner(px, st, slot);
     uvec4 smp = texelFetch(u_smalltile, st, 0);
-#ifdef STB_PIXEL_TERMS
+    uint split = 0u;
+#if defined(STB_UNIT_TERMS)
+    vec4 terms = vec4(1.0);
+#elif defined(STB_PIXEL_TERMS)
     vec4 terms = texelFetch(u_terms, px, 0);
 #else
-    vec4 terms = texelFetch(u_terms, term_texel(st, slot), 0);
+    ivec2 tt = term_texel(st, slot);
+    vec4 terms = texelFetch(u_terms, tt, 0);
+    split = texelFetch(u_term_split, tt, 0).r;
 #endif
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float W = sample_weight(smp[j]);
-        if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0 || terms[j] <= 0.0) continue;
+        if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0) continue;
         Light L = lights[li];
         vec3 Ldir; float dist;
         float f = light_falloff(L, s.P, Ldir, dist);
         if (f <= 0.0) continue;
-        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * terms[j];
+        float term = terms[j];
+        if ((split & (1u << uint(j))) != 0u) {
+            term = clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, s.P, s.N)),
+                         0.0, 1.0);
+        }
+        if (term <= 0.0) continue;
+        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * term;
         vec3 d, sp;
         brdf_eval(s, Ldir, d, sp);
         c += (d * L.misc.z + sp * L.misc.w) * E * W;

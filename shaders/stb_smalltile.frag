@@ -17,7 +17,7 @@ uniform ivec2 u_big_tiles;       // big-tile grid size
 uniform float u_eps;             // added to V cos+ (talk: keeps p_hat > 0 in shadow)
 uniform float u_weight_cap;      // W' <= cap * candidates * W_bt(sel); <= 0: no cap
 uniform int u_stochastic_bilinear;
-uniform float u_pdf_floor;       // defensive mixture: p_hat += floor x mean p_hat of the K candidates
+uniform float u_pdf_floor;       // defensive mixture: p_hat += floor x mean p_hat of the K candidates (0: none)
 
 layout(location = 0) out uvec4 o_samples;
 
@@ -108,12 +108,16 @@ void main() {
         ph_sum += ph;
         ph_n += 1.0;
     }
-    // Defensive mixture: p_hat' = p_hat + floor x mean(p_hat). A light that lights
+    // Defensive mixture: p_hat' = p_hat + floor x mean(p_hat), relative to this
+    // tile's own targets (so invariant to the scene's brightness). A light that lights
     // some pixel of the tile but none of the 4 sampled points (outside a cone,
     // beyond its range there...) stays selectable with a bounded weight: the
     // estimate stays unbiased (the talk accepts this bias) and its tail stays light.
-    float floor_ph = ph_n > 0.0 ? u_pdf_floor * ph_sum / ph_n : 0.0;
-    if (floor_ph <= 0.0) floor_ph = 1.0;  // nothing lit at the sampled points: uniform
+    // u_pdf_floor = 0 is the talk's estimator (p_hat alone). Nothing lit at any
+    // sampled point: every candidate equally (uniform), whatever the floor.
+    float mean_ph = ph_n > 0.0 ? ph_sum / ph_n : 0.0;
+    bool uniform_pick = !(mean_ph > 0.0);
+    float floor_ph = u_pdf_floor * mean_ph;
 
     // Iteration `base` hands slots base..base+N-1 to the N streams, rotated by a
     // random offset: each big-tile slot lands in exactly one stream.
@@ -134,7 +138,7 @@ void main() {
             uint li = li_all[slot];
             float wbt = wbt_all[slot];
             if (li == LIM_EMPTY_LIGHT_INDEX || wbt <= 0.0) continue;
-            float ph = ph_all[slot] + floor_ph;
+            float ph = uniform_pick ? 1.0 : ph_all[slot] + floor_ph;
             float w = ph * wbt;
             count[j] += 1.0;
             total[j] += w;

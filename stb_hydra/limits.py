@@ -280,3 +280,31 @@ LIGHTTREE_MAX_LEAVES = 1 << 14
 #: Node budget per frame: 16 Mi nodes x 16 B = 256 MiB; with >= 2 lights per leaf the
 #: nodes never outnumber GRID_MAX_LIST_ENTRIES, so this is a safety net, not a tuning knob.
 LIGHTTREE_MAX_NODES = 16 * 1024 * 1024
+
+
+# --- STB deferred shadow terms: where a 2x2 quad may share one term -----------------
+
+#: A quad's pixels share its shadow term for a light only while every pixel lies within
+#: this fraction of the light distance of the quad's representative point (about 3 deg
+#: seen from the light) -- otherwise (a post in front of a far wall) a term computed on
+#: the wall would multiply the post's own 1/d^2 irradiance (up to 7000x fireflies).
+STB_TERM_SHARE_REL_DISTANCE = 0.05
+#: ... and while their normals agree to this cosine (37 deg): normal-offset bias and
+#: self-shadowing differ across a crease.
+STB_TERM_SHARE_NORMAL_COS = 0.8
+
+# --- STB big-tile target ("shaped") --------------------------------------------------
+
+#: Lower bound of the emission x cone x IES factor in the shaped big-tile target: the
+#: factor is taken towards the tile's central segment only, so a light dark there may
+#: still light the tile's corners; the floor keeps its probability positive (unbiased).
+STB_BIGTILE_SHAPE_FLOOR = 0.1
+
+# --- STB interleaving patterns --------------------------------------------------------
+
+#: Balanced random quad -> small-tile patterns drawn from at start-up; one is used per
+#: frame (``-o pattern=random``), so the interleaving does not repeat frame to frame.
+STB_PATTERN_BANK = 32
+#: Gaussian preference (quads) of a tile for its own quadrant in the random patterns:
+#: keeps a tile's quads local (its refined target stays representative).
+STB_PATTERN_SIGMA_QUADS = 4.0

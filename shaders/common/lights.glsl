@@ -52,15 +52,20 @@ float light_shape_scalar(Light L, vec3 w) {
     return shape;
 }
 
+// Emission model towards unit direction `w` leaving the light: 1 (isotropic),
+// cos+ off the axis (disk, rect: one-sided), sin to the X axis (cylinder side).
+float emission_shape(Light L, vec3 w) {
+    if (L.axis_emit.w == EMIT_COSINE) return max(dot(w, L.axis_emit.xyz), 0.0);
+    if (L.axis_emit.w == EMIT_CYLINDER) {
+        float ca = dot(w, L.tangent_type.xyz);
+        return sqrt(max(1.0 - ca * ca, 0.0));
+    }
+    return 1.0;
+}
+
 vec3 light_shape_rgb(Light L, vec3 w) {
     float c = dot(w, L.axis_emit.xyz);
-    float shape = 1.0;
-    if (L.axis_emit.w == EMIT_COSINE) {
-        shape = max(c, 0.0);
-    } else if (L.axis_emit.w == EMIT_CYLINDER) {
-        float ca = dot(w, L.tangent_type.xyz);
-        shape = sqrt(max(1.0 - ca * ca, 0.0));
-    }
+    float shape = emission_shape(L, w);
 #ifdef HAS_IES
     if (L.tint_ies.w >= 0.0) shape *= L.ies_shadow.x;
 #endif

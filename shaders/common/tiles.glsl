@@ -2,15 +2,16 @@
 // quad <-> (small tile, slot) mappings. Interleaved mode: 4 small tiles share a
 // 32x32 px footprint (INTERLEAVE_FOOTPRINT_PX, 16x16 quads); the 16x16 inverse LUT
 // gives each quad's (tile 0..3, slot 0..63) and the forward table each (tile, slot)'s quad
-// (tools/gen_quad_patterns.py). The footprint grid is shifted by a per-frame
-// offset (even pixels). Plain mode: small tile = S x S px block, slot = quad
+// (tools/gen_quad_patterns.py). The footprint grid (and with it the 2x2
+// quad grid) is shifted by a per-frame offset of any number of pixels. Plain mode: small tile = S x S px block, slot = quad
 // row-major. Small tile (sx, sy) of footprint F is (2F.x + (t & 1), 2F.y + (t >> 1)).
 #ifndef STB_TILES_GLSL
 #define STB_TILES_GLSL
 
-uniform isampler2D u_quad_lut;      // 16x16 r32i: tile | slot << QUAD_LUT_SLOT_SHIFT (interleaved)
-uniform isampler2D u_quad_fwd;      // 64x4 r32i: qx | qy << QUAD_FWD_Y_SHIFT, row = tile, column = slot
-uniform ivec2 u_pattern_offset;     // px, even, per frame
+uniform isampler2D u_quad_lut;      // 16x16 r32i per layer: tile | slot << QUAD_LUT_SLOT_SHIFT
+uniform isampler2D u_quad_fwd;      // 64x4 r32i per layer: qx | qy << QUAD_FWD_Y_SHIFT, row = tile
+uniform ivec2 u_pattern_offset;     // px, per frame (0 .. footprint - 1)
+uniform int u_pattern_layer;        // this frame's pattern in the LUTs (layers stacked in y)
 uniform int u_interleave;           // 1: interleaved footprints, 0: plain small tiles
 uniform int u_small_px;             // small tile size in plain mode (px)
 
@@ -27,7 +28,7 @@ void quad_owner(ivec2 px, out ivec2 small_tile, out int slot) {
     if (u_interleave == 1) {
         ivec2 f = p / IL_FOOT_PX;
         ivec2 q = (p - f * IL_FOOT_PX) / 2;
-        int v = texelFetch(u_quad_lut, q, 0).r;
+        int v = texelFetch(u_quad_lut, q + ivec2(0, 16 * u_pattern_layer), 0).r;
         int t = v & ((1 << QUAD_LUT_SLOT_SHIFT) - 1);
         slot = v >> QUAD_LUT_SLOT_SHIFT;
         small_tile = 2 * f + ivec2(t & 1, t >> 1);
@@ -43,7 +44,7 @@ ivec2 quad_pixel(ivec2 small_tile, int slot) {
     if (u_interleave == 1) {
         ivec2 f = small_tile / 2;
         int t = (small_tile.x & 1) | ((small_tile.y & 1) << 1);
-        int v = texelFetch(u_quad_fwd, ivec2(slot, t), 0).r;
+        int v = texelFetch(u_quad_fwd, ivec2(slot, t + 4 * u_pattern_layer), 0).r;
         ivec2 q = ivec2(v & ((1 << QUAD_FWD_Y_SHIFT) - 1), v >> QUAD_FWD_Y_SHIFT);
         return f * IL_FOOT_PX + q * 2 - u_pattern_offset;
     }

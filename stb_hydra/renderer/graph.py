@@ -40,6 +40,7 @@ FORMATS: dict[str, tuple[int, str]] = {
     "r32f": (1, "f4"),
     "rg32f": (2, "f4"),
     "rgba32f": (4, "f4"),
+    "r8ui": (1, "u1"),
     "r32ui": (1, "u4"),
     "rgba32ui": (4, "u4"),
     "depth24": (1, "depth"),

@@ -141,6 +141,9 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_PDF_EPSILON": f"{limits.PDF_EPSILON:.3e}",
         "LIM_BIG_TILE_PX": str(limits.BIG_TILE_PX),
         "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
+        "LIM_TERM_SHARE_REL_DISTANCE": f"{limits.STB_TERM_SHARE_REL_DISTANCE:.6f}",
+        "LIM_TERM_SHARE_NORMAL_COS": f"{limits.STB_TERM_SHARE_NORMAL_COS:.6f}",
+        "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),

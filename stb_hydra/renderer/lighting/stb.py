@@ -32,9 +32,7 @@ the 8-bit terms use stochastic rounding; samples pack a 17-bit index and a
 
 from __future__ import annotations
 
-import json
 import math
-from importlib import resources
 from typing import TYPE_CHECKING, Any, cast
 
 import moderngl
@@ -55,13 +53,15 @@ from ..shader_constants import (
 from ..tasks.base import Pass
 from .base import LightingMethod, Warn, program
 from .options import Opt, OptionError, Schema
+from .quad_patterns import QuadPatterns, fixed_pattern, pattern_bank
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
     from ..gl_delegate import GLRenderDelegate
 
-#: Big-tile target functions: the talk's central segment, uniform (comparison).
-TARGET_MODES = {"segment": 0, "uniform": 1}
+#: Big-tile target functions: the talk's central segment, uniform (comparison), shaped
+#: (segment x emission, cone and IES, zero where the light cannot reach the tile).
+TARGET_MODES = {"segment": 0, "uniform": 1, "shaped": 2}
 
 #: Slot block (columns, rows) per big tile for each allowed K.
 SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
@@ -77,8 +77,12 @@ OPTIONS = Schema(
     Opt("weight_cap", float, 8.0, nullable=True,
         doc="sample weight cap relative to the tile mean (none or <= 0: unbiased)"),
     Opt("interleave", bool, True, doc="interleaved 4-tile footprints (the talk's)"),
+    Opt("pattern", str, "random", choices=("random", "fixed"),
+        doc="interleaving: a balanced random pattern per frame, or the talk's fixed one"),
     Opt("stochastic_bilinear", bool, True, doc="stochastic bilinear big-tile choice"),
-    Opt("target", str, "segment", choices=tuple(TARGET_MODES), doc="big-tile target function"),
+    Opt("target", str, "shaped", choices=tuple(TARGET_MODES),
+        doc="big-tile target: shaped (emission, cone, IES, range; default), segment (the "
+        "talk's Phi/d^2) or uniform"),
     Opt("pdf_floor", float, 0.25, doc="defensive mixture weight of the small-tile target"),
     Opt("shadow_res", str, "quad", choices=("quad", "pixel"), doc="deferred shadow terms per"
         " 2x2 quad (the talk's) or per pixel"),
@@ -87,11 +91,6 @@ OPTIONS = Schema(
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
 #: Textures a debug view samples (uniform -> render buffer).
 DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_terms": "stb_terms"}
-
-
-def load_quad_patterns() -> dict[str, Any]:
-    data = resources.files("stb_hydra").joinpath("data/quad_patterns.json").read_text()
-    return json.loads(data)
 
 
 class StbLighting(LightingMethod):
@@ -115,29 +114,35 @@ class StbLighting(LightingMethod):
         self.hiz_level = int(math.log2(int(self.o["big_tile"])))
         self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.pattern_offset = (0, 0)
+        self.pattern_layer = 0
 
     def internal(self) -> tuple[Tex, ...]:
         return (
             Tex("stb_bigtile", "r32ui", DERIVED),
             Tex("stb_smalltile", "rgba32ui", DERIVED),
             Tex("stb_terms", "rgba8", DERIVED),
+            Tex("stb_term_split", "r8ui", DERIVED),
         )
 
     def debug_passes(self) -> list[Pass]:
         return [StbDebugPass(self, aov) for aov in DEBUG_AOVS]
 
     # -- resources --
+    def patterns(self) -> QuadPatterns:
+        """The interleaving patterns of ``-o pattern`` (one layer per pattern)."""
+        return pattern_bank() if self.o["pattern"] == "random" else fixed_pattern()
+
     def _lut_textures(self, ctx: moderngl.Context) -> tuple[moderngl.Texture, moderngl.Texture]:
+        """Inverse LUT (16 x 16 per layer: tile | slot << shift, row = qy) and forward
+        table (64 x 4 per layer: qx | qy << shift, row = tile), layers stacked in y."""
         if self._luts is None:
-            pat = load_quad_patterns()
-            tile = np.array(pat["tile_of_quad"], dtype=np.int32)
-            slot = np.array(pat["slot_of_quad"], dtype=np.int32)
-            inv = (tile | (slot << QUAD_LUT_SLOT_SHIFT)).astype(np.int32)  # row = qy, column = qx
-            fwd = np.array(pat["quad_of_slot"], dtype=np.int32)  # (4, 64, 2)
-            # row = tile
+            pat = self.patterns()
+            inv = (pat.tile_of_quad | (pat.slot_of_quad << QUAD_LUT_SLOT_SHIFT)).astype(np.int32)
+            fwd = pat.quad_of_slot  # (P, 4, 64, 2)
             fwd_packed = (fwd[..., 0] | (fwd[..., 1] << QUAD_FWD_Y_SHIFT)).astype(np.int32)
-            t_inv = ctx.texture((16, 16), 1, inv.tobytes(), dtype="i4")
-            t_fwd = ctx.texture((64, 4), 1, fwd_packed.tobytes(), dtype="i4")
+            n = pat.count
+            t_inv = ctx.texture((16, 16 * n), 1, inv.tobytes(), dtype="i4")
+            t_fwd = ctx.texture((64, 4 * n), 1, fwd_packed.tobytes(), dtype="i4")
             for t in (t_inv, t_fwd):
                 t.filter = (moderngl.NEAREST, moderngl.NEAREST)
             self._luts = (t_inv, t_fwd)
@@ -168,17 +173,20 @@ class StbLighting(LightingMethod):
     def prepare(self, frame: FrameContext) -> None:
         o = self.o
         rng = np.random.default_rng(frame.seed)
-        if o["interleave"]:
-            self.pattern_offset = (2 * int(rng.integers(0, 16)), 2 * int(rng.integers(0, 16)))
-        else:
-            half = int(o["small_tile"]) // 2
-            self.pattern_offset = (2 * int(rng.integers(0, half)), 2 * int(rng.integers(0, half)))
+        # Any pixel offset, odd ones included: the 2x2 quad grid moves with it, so the
+        # quad-correlated noise of one frame does not stay in place when frames are
+        # averaged (an even-only offset left a fixed 2x2 checkerboard).
+        period = INTERLEAVE_FOOTPRINT_PX if o["interleave"] else int(o["small_tile"])
+        self.pattern_offset = (int(rng.integers(0, period)), int(rng.integers(0, period)))
+        # One interleaving pattern of the bank per frame (layer 0 of the fixed one).
+        self.pattern_layer = int(rng.integers(0, self.patterns().count))
 
     def _common_uniforms(self, frame: FrameContext, prog: moderngl.Program) -> None:
         o = self.o
         set_uniform(prog, "u_block", SLOT_BLOCKS[int(o["K"])])
         set_uniform(prog, "u_big_px", int(o["big_tile"]))
         set_uniform(prog, "u_pattern_offset", self.pattern_offset)
+        set_uniform(prog, "u_pattern_layer", self.pattern_layer)
         set_uniform(prog, "u_interleave", 1 if o["interleave"] else 0)
         set_uniform(prog, "u_small_px", int(o["small_tile"]))
         set_uniform(prog, "u_weight_cap", float(o["weight_cap"]))
@@ -202,6 +210,8 @@ class StbLighting(LightingMethod):
         d["STB_N"] = int(self.o["N"])
         if self.o["shadow_res"] == "pixel":
             d["STB_PIXEL_TERMS"] = True
+        if not any(k in d for k in ("HAS_SHADOWS", "HAS_CONES", "HAS_IES")):
+            d["STB_UNIT_TERMS"] = True  # every term is 1: no term pass
         return d
 
     def execute(self, frame: FrameContext) -> None:
@@ -226,7 +236,7 @@ class StbLighting(LightingMethod):
         set_uniform(prog, "u_target_mode", TARGET_MODES[self.o["target"]])
         self.bind_common(frame, prog)
         self._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
-        self._pass(frame, prog, "stb_bigtile", g["bigtile"])
+        self._pass(frame, prog, ["stb_bigtile"], g["bigtile"])
 
         # 2. small tiles
         small = bufs.texture("stb_smalltile", 4, "u4", size=g["smalltile"])
@@ -240,18 +250,25 @@ class StbLighting(LightingMethod):
         unit = self._bind(frame, prog, unit, "u_bigtile", big)
         unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
         self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
-        self._pass(frame, prog, "stb_smalltile", g["smalltile"])
+        self._pass(frame, prog, ["stb_smalltile"], g["smalltile"])
 
-        # 3. shadow terms
-        tsize = (w, h) if self.o["shadow_res"] == "pixel" else g["terms"]
+        # 3. shadow terms (skipped when every term is 1)
+        pixel_terms = self.o["shadow_res"] == "pixel"
+        tsize = (w, h) if pixel_terms else g["terms"]
         terms = bufs.texture("stb_terms", 4, "f1", size=tsize)
-        prog = program(frame, "stb_shadow.frag", defines)
-        self._common_uniforms(frame, prog)
-        unit = self.bind_common(frame, prog)
-        unit = self._bind(frame, prog, unit, "u_smalltile", small)
-        unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
-        self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
-        self._pass(frame, prog, "stb_terms", tsize)
+        split = bufs.texture("stb_term_split", 1, "u1", size=tsize)
+        if "STB_UNIT_TERMS" in defines:
+            with frame.timings_scope("stb_terms"):
+                bufs.framebuffer("fb_stb_terms_unit", ["stb_terms"]).clear(1.0, 1.0, 1.0, 1.0)
+        else:
+            prog = program(frame, "stb_shadow.frag", defines)
+            self._common_uniforms(frame, prog)
+            unit = self.bind_common(frame, prog)
+            unit = self._bind(frame, prog, unit, "u_smalltile", small)
+            unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+            self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+            targets = ["stb_terms"] if pixel_terms else ["stb_terms", "stb_term_split"]
+            self._pass(frame, prog, targets, tsize)
 
         # 4. lighting
         prog = program(frame, "stb_lighting.frag", defines)
@@ -259,6 +276,7 @@ class StbLighting(LightingMethod):
         unit = self.bind_common(frame, prog)
         unit = self._bind(frame, prog, unit, "u_smalltile", small)
         unit = self._bind(frame, prog, unit, "u_terms", terms)
+        unit = self._bind(frame, prog, unit, "u_term_split", split)
         unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
         self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
         with frame.timings_scope("stb_lighting"):
@@ -266,10 +284,15 @@ class StbLighting(LightingMethod):
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
 
     def _pass(
-        self, frame: FrameContext, prog: moderngl.Program, target: str, size: tuple[int, int]
+        self,
+        frame: FrameContext,
+        prog: moderngl.Program,
+        targets: list[str],
+        size: tuple[int, int],
     ) -> None:
-        with frame.timings_scope(target):
-            fbo = frame.buffers.framebuffer("fb_" + target, [target])
+        """A full-screen draw into ``targets`` (MRT), timed as ``lighting.<first>``."""
+        with frame.timings_scope(targets[0]):
+            fbo = frame.buffers.framebuffer("fb_" + "+".join(targets), targets)
             draw_fullscreen(frame.ctx, prog, fbo, size)
 
     def release(self) -> None:
