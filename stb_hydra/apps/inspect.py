@@ -31,12 +31,18 @@ def inspect_stage(stage, time: float | None = None,
     from ..renderer.delegate import RenderDelegate
     from ..renderer.render_index import RenderIndex
     from ..scene import prims
+    from ..scene.lights import influence_range
     from ..scene.stage_io import time_label
     from ..scene.stage_scene_index import StageSceneIndex
 
     si = StageSceneIndex(stage, time)
     ri = RenderIndex(si, RenderDelegate())
     ri.sync_all()
+    # Ranges as a render through the default camera uses them: automatic ranges
+    # follow the camera's exposure (stb_hydra.scene.lights.influence_range).
+    cams = si.cameras()
+    sp = ri.delegate.cameras.get(cams[0]) if cams else None
+    exposure = float(sp.exposure_scale) if sp is not None else 1.0
     lights = []
     for path in sorted(ri.delegate.lights):
         lp = ri.delegate.lights[path].light
@@ -71,7 +77,12 @@ def inspect_stage(stage, time: float | None = None,
                 "update": lp.shadow_update,
                 "color": _vec(lp.shadow_color),
             },
-            "range": _num(lp.range) if local else None,
+            "range": (
+                _num(lp.range if lp.range_authored else influence_range(lp.peak_intensity,
+                                                                        exposure))
+                if local
+                else None
+            ),
             "shape": {
                 k: round(v, 6)
                 for k, v in (
@@ -97,6 +108,7 @@ def inspect_stage(stage, time: float | None = None,
             "lights": len(lights),
             "enabled": sum(1 for lr in lights if lr["enabled"]),
             "total_flux_lm": round(total_flux, 3),
+            "range_exposure_scale": round(exposure, 9),
         },
         "warnings": list(
             dict.fromkeys([*(usd_warnings or ()), *si.warnings, *ri.delegate.warnings])
@@ -124,7 +136,7 @@ def _print_report(rep: dict) -> None:
         "cone",
         "IES",
         "shadow",
-        "range (m)",
+        "range (m, at camera exposure)",
     ):
         t.add_column(col)
     for lr in rep["lights"]:

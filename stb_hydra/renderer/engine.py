@@ -264,6 +264,9 @@ class Engine:
         cam, exposure = self.camera()
         assert s.height is not None  # resolved from the camera's aspect in __init__
         view: ViewSetup = view_setup(cam, s.width, s.height, exposure)
+        # Influence ranges follow the exposure: the display image does not depend on
+        # the unit scale of the lights (every method culls and fades with them).
+        self.delegate.light_table.set_exposure(exposure)
         self.buffers.resize(s.width, s.height)
         self._allocate()
         fidx = self.frame_index

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..scene import prims
+from ..scene.lights import influence_range
 from ..scene.prims import NO_CONE_CUTOFF_RAD, LightPrim
 
 TYPE_CODES = {t: i for i, t in enumerate(prims.LIGHT_TYPES)}
@@ -26,6 +27,8 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "tangent": ((3,), np.float32, 0.0),
     "intensity": ((3,), np.float32, 0.0),
     "range": ((), np.float32, 0.0),
+    "range_authored": ((), np.bool_, False),
+    "peak_intensity": ((), np.float32, 0.0),  # cd, luminance-weighted
     "flux": ((), np.float32, 0.0),
     "type": ((), np.int8, -1),
     "emission": ((), np.int8, 0),
@@ -54,6 +57,8 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
 
 class LightTable:
     def __init__(self, capacity: int = 64) -> None:
+        #: Camera exposure scale the automatic ranges are computed for.
+        self.exposure_scale = 1.0
         self.capacity = 0
         self.cols: dict[str, np.ndarray] = {}
         self._free: list[int] = []
@@ -114,6 +119,25 @@ class LightTable:
         self.version += 1
         self.cols["version"][row] = self.version
 
+    def set_exposure(self, exposure_scale: float) -> int:
+        """Rescale the automatic influence ranges to a camera exposure (a brighter
+        exposure sees dimmer light, so ranges grow as sqrt(exposure)). Authored
+        ``stb:range`` values stay. Returns the number of rows changed (their version
+        moves, so the light buffer and the shadow maps follow)."""
+        s = float(exposure_scale)
+        if not (math.isfinite(s) and s > 0.0) or s == self.exposure_scale:
+            return 0
+        self.exposure_scale = s
+        c = self.cols
+        n = self._n_rows
+        local = c["live"][:n] & np.isin(c["type"][:n], LOCAL_TYPE_CODES)
+        rows = np.nonzero(local & ~c["range_authored"][:n])[0]
+        if len(rows):
+            c["range"][rows] = influence_range(c["peak_intensity"][rows], s)
+            self.version += 1
+            c["version"][rows] = self.version
+        return len(rows)
+
     def write(self, row: int, lp: LightPrim, ies_layer: int = -1) -> None:
         """Copy a light record into its row."""
         c = self.cols
@@ -121,7 +145,14 @@ class LightTable:
         c["direction"][row] = lp.direction
         c["tangent"][row] = lp.tangent
         c["intensity"][row] = lp.intensity
-        c["range"][row] = lp.range if math.isfinite(lp.range) else np.float32(3.0e38)
+        c["range_authored"][row] = lp.range_authored
+        c["peak_intensity"][row] = lp.peak_intensity
+        if not math.isfinite(lp.range):
+            c["range"][row] = np.float32(3.0e38)
+        elif lp.range_authored or lp.type not in prims.LOCAL_LIGHT_TYPES:
+            c["range"][row] = lp.range
+        else:
+            c["range"][row] = influence_range(lp.peak_intensity, self.exposure_scale)
         c["flux"][row] = lp.flux
         c["type"][row] = TYPE_CODES[lp.type]
         c["emission"][row] = lp.emission

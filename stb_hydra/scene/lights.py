@@ -792,6 +792,18 @@ def _read_ies(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     lp.ies_scale = mx / power if lp.ies_normalize else mx
 
 
+def influence_range(peak_cd: float | np.ndarray, exposure_scale: float = 1.0):
+    """Automatic influence radius (m) of a light of peak intensity ``peak_cd``: where
+    its illuminance, times the camera's linear ``exposure_scale``, falls to
+    ``limits.LIGHT_CUTOFF_LUX`` -- so a dim scene shot with a long exposure keeps the
+    same lights in range as a bright one (the display image does not depend on the
+    unit scale). Clamped to [MIN_LIGHT_RANGE_M, MAX_LIGHT_RANGE_M]; vectorised."""
+    e = np.maximum(np.asarray(peak_cd, dtype=np.float64), 0.0) * float(exposure_scale)
+    r = np.clip(np.sqrt(e / limits.LIGHT_CUTOFF_LUX), limits.MIN_LIGHT_RANGE_M,
+                limits.MAX_LIGHT_RANGE_M)
+    return float(r) if r.ndim == 0 else r
+
+
 def _finish_photometry(lp: LightPrim, a: _Attrs) -> None:
     """Luminous flux estimate and influence radius (``stb:range`` when authored)."""
     iy = float(_LUMA @ lp.intensity)
@@ -806,9 +818,8 @@ def _finish_photometry(lp: LightPrim, a: _Attrs) -> None:
             lp.ies_angle_scale,
         )
         lp.flux = iy * lp.ies_scale * integ
-        i_max = iy * lp.ies_scale * peak
-        r_auto = math.sqrt(max(i_max, 0.0) / limits.LIGHT_CUTOFF_LUX)
-        r_auto = min(max(r_auto, limits.MIN_LIGHT_RANGE_M), limits.MAX_LIGHT_RANGE_M)
+        lp.peak_intensity = max(iy * lp.ies_scale * peak, 0.0)
+        r_auto = influence_range(lp.peak_intensity)
         rng = a.get("stb:range", -1.0)
         if _finite(rng) and rng > 0:
             lp.range = float(rng) * lp.world_scale

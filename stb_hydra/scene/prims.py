@@ -133,8 +133,14 @@ class LightPrim:
     shadow_falloff_gamma: float = 1.0
     # stb:* (StbLightAPI).
     shadow_update: str = SHADOW_STATIC
-    range: float = 0.0  # influence radius, metres
+    #: Influence radius (m) at camera exposure scale 1: authored ``stb:range``, else
+    #: where the peak illuminance falls to ``limits.LIGHT_CUTOFF_LUX``
+    #: (:func:`stb_hydra.scene.lights.influence_range`; renderers rescale it with the
+    #: camera exposure so the display image does not depend on the unit scale).
+    range: float = 0.0
     range_authored: bool = False
+    #: Peak luminous intensity (cd, luminance-weighted, IES peak included).
+    peak_intensity: float = 0.0
     # DistantLight.
     angle: float = 0.0  # angular diameter, degrees
     # DomeLight.
