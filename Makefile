@@ -28,12 +28,16 @@ demo: sysdeps $(STAMP)
 
 test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools
+	$(VENV)/bin/ruff format --check stb_hydra tests tools
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/mypy
 	$(PY) -m pytest -q -p no:cacheprovider
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools
+	$(VENV)/bin/ruff format --check stb_hydra tests tools
+	$(VENV)/bin/lint-imports
+	$(VENV)/bin/mypy
 
 clean:
-	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache .hypothesis
+	rm -rf $(VENV) $(OUT) .pytest_cache .ruff_cache .hypothesis .mypy_cache .grimp_cache .import_linter_cache

@@ -101,7 +101,9 @@ def camera_usda(
     clip = f"    float2 clippingRange = ({clipping[0]:g}, {clipping[1]:g})\n" if clipping else ""
     x, y, z = translate
     return (
-        'def Camera "Cam"\n{\n' + lens + clip
+        'def Camera "Cam"\n{\n'
+        + lens
+        + clip
         + f"    double3 xformOp:translate = ({x:g}, {y:g}, {z:g})\n"
         f"    float xformOp:rotateX = {rotate_x:g}\n"
         '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'

@@ -17,7 +17,6 @@ W, H = 192, 108
 TOL = 1e-4
 
 
-
 def relmse(a, b, eps=1e-2):
     return float(np.mean((a - b) ** 2 / (b**2 + eps)))
 
@@ -172,7 +171,7 @@ def test_courtyard_with_ies_cones_shadows_sun(gl_ctx, repo):
 def test_no_local_lights_falls_back_to_sun_and_ambient(gl_ctx):
     text = small_lights_scene(0) + (
         'def DistantLight "Sun"\n{\n    float inputs:intensity = 3\n'
-        '    float3 xformOp:rotateXYZ = (-60, 20, 0)\n'
+        "    float3 xformOp:rotateXYZ = (-60, 20, 0)\n"
         '    uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]\n}\n'
     )
     stage = usda_stage(text)

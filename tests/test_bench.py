@@ -88,8 +88,15 @@ class FakeEngine:
         self.n += 1
         self.timings.frames.append(
             {
-                "sync": 0.5, "commit": 0.1, "prepare": 1.0, "prepare.light_cull": 0.4,
-                "a": 2.0, "lighting": 5.0, "lighting.x": 3.0, "lighting.y": 1.5, "c": 1.0,
+                "sync": 0.5,
+                "commit": 0.1,
+                "prepare": 1.0,
+                "prepare.light_cull": 0.4,
+                "a": 2.0,
+                "lighting": 5.0,
+                "lighting.x": 3.0,
+                "lighting.y": 1.5,
+                "c": 1.0,
             }
         )
         return SimpleNamespace(stats={"fov_lights": 7, "grid": [1]}, light_count=7)
@@ -106,8 +113,13 @@ def test_split_and_measure_fake_engine():
     assert eng.n == 5 and len(m.frame) == 3
     assert eng.seen_requested == [set()] * 5 and eng.aov_output.requested == {"color"}
     s = m.summary()
-    assert s["passes"] == {"a": 2.0, "lighting.x": 3.0, "lighting.y": 1.5,
-                           "lighting.other": 0.5, "c": 1.0}
+    assert s["passes"] == {
+        "a": 2.0,
+        "lighting.x": 3.0,
+        "lighting.y": 1.5,
+        "lighting.other": 0.5,
+        "c": 1.0,
+    }
     assert s["gpu_ms"] == 8.0 and s["cull_upload_ms"] == 0.4
     assert m.stats == {"fov_lights": 7}
     assert median_dict([{"a": 1.0}, {"b": 3.0}, {"a": 2.0}]) == {"a": 1.0, "b": 0.0}
@@ -146,11 +158,25 @@ def test_max_seconds_caps_slow_methods_but_keeps_one_measured_frame():
 def run(gl_ctx, tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
     js = out / "bench.json"
-    rc = cli_main([
-        "bench", "gen:lights:12,60", "--methods", "stb:N=1,sun,stb:N=4,K=8",
-        "--size", "96x54", "--size", "64x36", "--frames", "3", "--warmup", "1",
-        "--json", str(js), "--quiet",
-    ])
+    rc = cli_main(
+        [
+            "bench",
+            "gen:lights:12,60",
+            "--methods",
+            "stb:N=1,sun,stb:N=4,K=8",
+            "--size",
+            "96x54",
+            "--size",
+            "64x36",
+            "--frames",
+            "3",
+            "--warmup",
+            "1",
+            "--json",
+            str(js),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     return out, json.loads(js.read_text())
 
@@ -172,9 +198,17 @@ def test_records_cover_every_combination(run):
 def test_record_schema_and_pass_sum(run):
     _out, recs = run
     for r in recs:
-        for key, typ in (("method", str), ("lights", int), ("width", int), ("height", int),
-                         ("frame_ms", float), ("passes", dict), ("timings", dict),
-                         ("cpu_ms", float), ("gpu_ms", float)):
+        for key, typ in (
+            ("method", str),
+            ("lights", int),
+            ("width", int),
+            ("height", int),
+            ("frame_ms", float),
+            ("passes", dict),
+            ("timings", dict),
+            ("cpu_ms", float),
+            ("gpu_ms", float),
+        ):
             assert isinstance(r[key], typ), key
         assert r["frames"] == 3 and r["warmup"] == 1
         for k in ("sync", "commit", "prepare", "prepare.light_cull"):
@@ -186,8 +220,12 @@ def test_record_schema_and_pass_sum(run):
         assert 0.6 * r["frame_ms"] - 1.0 <= total <= 1.1 * r["frame_ms"] + 1.0, r
         assert r["frame_ms_min"] <= r["frame_ms"] <= r["frame_ms_max"]
         if r["method"] == "stb":
-            assert {"lighting.stb_bigtile", "lighting.stb_smalltile", "lighting.stb_terms",
-                    "lighting.stb_lighting"} <= set(r["passes"])
+            assert {
+                "lighting.stb_bigtile",
+                "lighting.stb_smalltile",
+                "lighting.stb_terms",
+                "lighting.stb_lighting",
+            } <= set(r["passes"])
 
 
 @pytest.mark.gl

@@ -55,9 +55,7 @@ def stage():
 
 def render(stage, lighting: str, aovs, **opts):
     """(engine results, frame, engine) of one final frame; the caller releases."""
-    eng = Engine(
-        stage, RenderSettings(width=W, height=H, lighting=lighting, method_options=opts)
-    )
+    eng = Engine(stage, RenderSettings(width=W, height=H, lighting=lighting, method_options=opts))
     eng.request_aovs(set(aovs))
     frame = eng.render_frame()
     return eng.aovs, frame, eng
@@ -237,9 +235,23 @@ def test_cli_refuses_stb_views_with_one_line(tmp_path, stage):
     scene.write_text(scene_text(4))
     out = tmp_path / "img.png"
     r = subprocess.run(
-        [sys.executable, "-m", "stb_hydra.apps.cli", "render", str(scene), str(out),
-         "--width", "64", "--lighting", "reference", "--aov", "bigtile,lightcount"],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "stb_hydra.apps.cli",
+            "render",
+            str(scene),
+            str(out),
+            "--width",
+            "64",
+            "--lighting",
+            "reference",
+            "--aov",
+            "bigtile,lightcount",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0
@@ -252,10 +264,25 @@ def test_cli_writes_debug_aovs_beside_the_image(tmp_path):
     scene.write_text(scene_text(6))
     out = tmp_path / "img.exr"
     r = subprocess.run(
-        [sys.executable, "-m", "stb_hydra.apps.cli", "render", str(scene), str(out),
-         "--width", "96", "--height", "54", "--lighting", "stb",
-         "--aov", ",".join(DEBUG_AOVS)],
-        capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "stb_hydra.apps.cli",
+            "render",
+            str(scene),
+            str(out),
+            "--width",
+            "96",
+            "--height",
+            "54",
+            "--lighting",
+            "stb",
+            "--aov",
+            ",".join(DEBUG_AOVS),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert r.returncode == 0, r.stderr
     for name in DEBUG_AOVS:

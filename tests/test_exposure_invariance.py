@@ -65,8 +65,7 @@ def render(text: str, method: str, frames: int) -> tuple[np.ndarray, list[float]
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
-    eng = Engine(usda_stage(text), RenderSettings(width=96, height=54, lighting=method,
-                                                  seed=3))
+    eng = Engine(usda_stage(text), RenderSettings(width=96, height=54, lighting=method, seed=3))
     try:
         eng.render(accumulate=frames)
         ranges = sorted(float(r) for r in eng.delegate.light_table.range if 0 < r < 1e30)
@@ -92,6 +91,12 @@ def test_ranges_grow_with_the_square_root_of_the_exposure():
 
     peak = np.array([1.0, 100.0, 1e4])
     r1 = influence_range(peak, 1.0)
-    np.testing.assert_allclose(r1, np.clip(np.sqrt(peak / limits.LIGHT_CUTOFF_LUX),
-                                           limits.MIN_LIGHT_RANGE_M, limits.MAX_LIGHT_RANGE_M))
+    np.testing.assert_allclose(
+        r1,
+        np.clip(
+            np.sqrt(peak / limits.LIGHT_CUTOFF_LUX),
+            limits.MIN_LIGHT_RANGE_M,
+            limits.MAX_LIGHT_RANGE_M,
+        ),
+    )
     np.testing.assert_allclose(influence_range(peak * 1e-3, 1000.0), r1, rtol=1e-12)

@@ -169,8 +169,9 @@ def engine(stage, lighting="reference", **opts):
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
-    return Engine(stage, RenderSettings(width=64, height=36, lighting=lighting,
-                                        method_options=opts))
+    return Engine(
+        stage, RenderSettings(width=64, height=36, lighting=lighting, method_options=opts)
+    )
 
 
 @pytest.mark.gl
@@ -178,10 +179,16 @@ def test_engine_graph_is_ordered_and_described(stage):
     eng = engine(stage, "stb")
     try:
         names = [p.name for p in eng.tasks]
-        for a, b in [("light_cull", "shadow_atlas"), ("shadow_atlas", "light_upload"),
-                     ("shadow", "frame_uniforms"), ("gbuffer", "hiz"), ("hiz", "lighting"),
-                     ("lighting", "accumulate"), ("accumulate", "color_correction"),
-                     ("color_correction", "aov_output")]:
+        for a, b in [
+            ("light_cull", "shadow_atlas"),
+            ("shadow_atlas", "light_upload"),
+            ("shadow", "frame_uniforms"),
+            ("gbuffer", "hiz"),
+            ("hiz", "lighting"),
+            ("lighting", "accumulate"),
+            ("accumulate", "color_correction"),
+            ("color_correction", "aov_output"),
+        ]:
             assert names.index(a) < names.index(b), (a, b)
         text = eng.describe()
         assert "lighting method: stb" in text and "stb_bigtile" in text

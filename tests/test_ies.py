@@ -67,9 +67,16 @@ def make_ies(
     """An LM-63 text for a grid; ``cd`` broadcasts to (len(h), len(v))."""
     cd = np.broadcast_to(np.asarray(cd, dtype=float), (len(h), len(v)))
     fmt = lambda a: " ".join(repr(float(x)) for x in a)  # noqa: E731
-    rows = [first, "[TEST] inline", tilt,
-            f"1 {lumens} {mult} {len(v)} {len(h)} {ptype} 2 0 0 0", f"{ballast} 1.0 10",
-            fmt(v), fmt(h), *(fmt(r) for r in cd)]
+    rows = [
+        first,
+        "[TEST] inline",
+        tilt,
+        f"1 {lumens} {mult} {len(v)} {len(h)} {ptype} 2 0 0 0",
+        f"{ballast} 1.0 10",
+        fmt(v),
+        fmt(h),
+        *(fmt(r) for r in cd),
+    ]
     return "\n".join(rows) + "\n"
 
 
@@ -91,12 +98,24 @@ def manifest(ies_dir: Path) -> dict[str, dict]:
     for line in text.splitlines():
         if line.startswith("| `"):
             c = [x.strip() for x in line.strip().strip("|").split("|")]
-            rows[c[0].strip("`")] = dict(version=c[2], tilt=c[3], type=c[4], vxh=c[5],
-                                         vrange=c[6], hrange=c[7], symmetry=c[8], flags=c[9])
-    for m in re.finditer(r"### (\S+)\n(?:- .*\n)*?- first line: `(.*)`; lumens/lamp (\S+); "
-                         r"units (ft|m);", text):
-        rows[m.group(1)].update(first_line=m.group(2), lumens=float(m.group(3)),
-                                units=1 if m.group(4) == "ft" else 2)
+            rows[c[0].strip("`")] = dict(
+                version=c[2],
+                tilt=c[3],
+                type=c[4],
+                vxh=c[5],
+                vrange=c[6],
+                hrange=c[7],
+                symmetry=c[8],
+                flags=c[9],
+            )
+    for m in re.finditer(
+        r"### (\S+)\n(?:- .*\n)*?- first line: `(.*)`; lumens/lamp (\S+); "
+        r"units (ft|m);",
+        text,
+    ):
+        rows[m.group(1)].update(
+            first_line=m.group(2), lumens=float(m.group(3)), units=1 if m.group(4) == "ft" else 2
+        )
     return rows
 
 
@@ -123,8 +142,13 @@ def test_real_file_matches_manifest(fname: str, profiles, manifest) -> None:
     assert (p.vertical_angles[0], p.vertical_angles[-1]) == (v0, v1)
     assert (p.horizontal_angles[0], p.horizontal_angles[-1]) == (h0, h1)
     sym = row["symmetry"].split(" ")[0]
-    expected_sym = {"axial": "axial", "quadrant": "quadrant", "full": "full", "H": "none",
-                    "bilateral": "bilateral" if "0-180" in row["symmetry"] else "bilateral_90_270"}
+    expected_sym = {
+        "axial": "axial",
+        "quadrant": "quadrant",
+        "full": "full",
+        "H": "none",
+        "bilateral": "bilateral" if "0-180" in row["symmetry"] else "bilateral_90_270",
+    }
     assert p.symmetry == expected_sym[sym]
     assert p.lumens_per_lamp == pytest.approx(row["lumens"], rel=1e-5)
     assert p.units_type == row["units"]
@@ -174,7 +198,11 @@ def test_photon_parse_1995_files(profiles) -> None:
 
     f2 = profiles["photon__7.ies"]
     assert (f2.version, f2.n_lamps, f2.lumens_per_lamp, f2.multiplier) == (
-        "LM-63-1995", 1, 4450.0, 1.0)
+        "LM-63-1995",
+        1,
+        4450.0,
+        1.0,
+    )
     c = f2.candela_raw
     assert c.shape == (7, 37)
     for row in (c[0], c[2], c[-1]):
@@ -195,22 +223,100 @@ def test_photon_parse_1995_files(profiles) -> None:
 def test_photon_constant_point5_normalised_attenuation(profiles) -> None:
     p = profiles["photon__constant_point5_candela.IES"]
     assert p.is_hemispherical and p.power() == pytest.approx(0.5, rel=1e-12)
-    cases = [((0, 0), 1.0), ((PI, 0), 0.0), ((0, PI), 1.0), ((PI, PI), 0.0),
-             ((2 * PI, 2 * PI), 0.0), ((2 * PI, 4 * PI), 0.0), ((-2 * PI, -4 * PI), 1.0),
-             ((PI / 2, PI), 1.0)]
+    cases = [
+        ((0, 0), 1.0),
+        ((PI, 0), 0.0),
+        ((0, PI), 1.0),
+        ((PI, PI), 0.0),
+        ((2 * PI, 2 * PI), 0.0),
+        ((2 * PI, 4 * PI), 0.0),
+        ((-2 * PI, -4 * PI), 1.0),
+        ((PI / 2, PI), 1.0),
+    ]
     for (theta, phi), expected in cases:
         assert p.sample(theta, phi) / p.power() == pytest.approx(expected, abs=1e-4)
 
 
 # --- photometric-viewer tests/photometry/ies95 -------------------------------------------
 
-PV_VERTICAL = [0.0, 2.5, 5.0, 7.5, 10.0, 12.5, 15.0, 17.5, 20.0, 22.5, 25.0, 27.5, 30.0, 32.5,
-               35.0, 37.5, 40.0, 42.5, 45.0, 47.5, 50.0, 52.5, 55.0, 57.5, 60.0, 62.5, 65.0,
-               67.5, 70.0, 72.5, 75.0, 77.5, 80.0, 82.5, 85.0, 87.5, 90.0]
-PV_INTENSITIES = [2200.0, 2000.2, 1950.0, 1700.1, 1328.4, 1115.1, 900.5, 700.4, 600.3, 501.2,
-                  400.1, 398.3, 380.9, 400.2, 390.5, 320.0, 185.0, 100.6, 40.1, 20.0, 15.2,
-                  15.0, 14.0, 11.0, 10.8, 10.8, 10.0, 7.0, 4.0, 1.2, 0.0, 0.0, 0.0, 0.0, 0.0,
-                  1.0, 0.0]
+PV_VERTICAL = [
+    0.0,
+    2.5,
+    5.0,
+    7.5,
+    10.0,
+    12.5,
+    15.0,
+    17.5,
+    20.0,
+    22.5,
+    25.0,
+    27.5,
+    30.0,
+    32.5,
+    35.0,
+    37.5,
+    40.0,
+    42.5,
+    45.0,
+    47.5,
+    50.0,
+    52.5,
+    55.0,
+    57.5,
+    60.0,
+    62.5,
+    65.0,
+    67.5,
+    70.0,
+    72.5,
+    75.0,
+    77.5,
+    80.0,
+    82.5,
+    85.0,
+    87.5,
+    90.0,
+]
+PV_INTENSITIES = [
+    2200.0,
+    2000.2,
+    1950.0,
+    1700.1,
+    1328.4,
+    1115.1,
+    900.5,
+    700.4,
+    600.3,
+    501.2,
+    400.1,
+    398.3,
+    380.9,
+    400.2,
+    390.5,
+    320.0,
+    185.0,
+    100.6,
+    40.1,
+    20.0,
+    15.2,
+    15.0,
+    14.0,
+    11.0,
+    10.8,
+    10.8,
+    10.0,
+    7.0,
+    4.0,
+    1.2,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    1.0,
+    0.0,
+]
 # file stem -> (lumens/lamp, multiplier, units, width, length, height) as written in the files
 PV_FILES = {
     "absolute_photometry": (-1, 1.0, 2, -0.12, 0, 0),
@@ -235,17 +341,22 @@ PV_FILES = {
 }
 # photometric-viewer converter.py: LM-63-2002 opening shape from the signs of (w, l, h)
 PV_SHAPE_SIGNS = {
-    "point": (0, 0, 0), "rectangular": (1, 1, 0), "round": (-1, 0, 0), "sphere": (-1, 0, -1),
+    "point": (0, 0, 0),
+    "rectangular": (1, 1, 0),
+    "round": (-1, 0, 0),
+    "sphere": (-1, 0, -1),
     "horizontal_cylinder_opening_along_length": (0, 1, -1),
     "horizontal_cylinder_opening_along_width": (1, 0, -1),
-    "ellipse_opening_along_length": (-1, 1, 1), "ellipse_opening_along_width": (1, -1, 1),
-    "ellipsoid_opening_along_length": (-1, 1, -1), "ellipsoid_opening_along_width": (1, -1, -1),
+    "ellipse_opening_along_length": (-1, 1, 1),
+    "ellipse_opening_along_width": (1, -1, 1),
+    "ellipsoid_opening_along_length": (-1, 1, -1),
+    "ellipsoid_opening_along_width": (1, -1, -1),
 }
 
 
 @pytest.mark.parametrize("stem", sorted(PV_FILES))
 def test_photometric_viewer_raw_fields(stem: str, testdata: Path) -> None:
-    path = (testdata / "parsers/photometric-viewer/tests/data/photometrics/ies95" / f"{stem}.ies")
+    path = testdata / "parsers/photometric-viewer/tests/data/photometrics/ies95" / f"{stem}.ies"
     p = load_ies(path)
     lumens, mult, units, w, length, h = PV_FILES[stem]
     assert p.version == "LM-63-1995" and p.tilt == "NONE"
@@ -262,12 +373,14 @@ def test_photometric_viewer_raw_fields(stem: str, testdata: Path) -> None:
             assert tuple(np.sign([p.width, p.length, p.height])) == signs
     if stem == "label_lines":
         assert p.keywords["MULTILINE"] == (
-            "Test multiline metadata\nShould contain three lines\nDivided by LF characters")
+            "Test multiline metadata\nShould contain three lines\nDivided by LF characters"
+        )
         assert p.keywords["BALLASTCAT"] == "BC15345"
     else:
         assert p.keywords["LUMINAIRE"] == (
             "Dummy IES file.\nCan be used for example for testing the software, create "
-            "screenshots, etc.\nLicensed under MIT License")
+            "screenshots, etc.\nLicensed under MIT License"
+        )
 
 
 PV_HEADER = """
@@ -277,12 +390,16 @@ PV_HEADER = """
     1 -1 1.0 37 {n_h} 1 2 -0.12 0.34 -0.56
     1.0 1.0 15
 """
-PV_V = ("0.0 2.5 5.0 7.5 10.0 12.5 15.0 17.5 20.0 22.5 25.0 27.5 30.0 32.5 35.0 37.5 40.0 "
-        "42.5 45.0 47.5 50.0 52.5 55.0\n57.5 60.0 62.5 65.0 67.5 70.0 72.5 75.0 77.5 80.0 "
-        "82.5 85.0 87.5 {last}\n")
-PV_I = ("2200.0 2000.2 1950.0 1700.1 1328.4 1115.1 900.5 700.4 600.3 501.2 400.1 398.3 "
-        "380.9 400.2 390.5 320.0 185.0 100.6 40.1\n20.0 15.2 15.0 14.0 11.0 10.8 10.8 10.0 7.0 "
-        "4.0 1.2 0.0 0.0 0.0 0.0 0.0 1.0 {tail}\n")
+PV_V = (
+    "0.0 2.5 5.0 7.5 10.0 12.5 15.0 17.5 20.0 22.5 25.0 27.5 30.0 32.5 35.0 37.5 40.0 "
+    "42.5 45.0 47.5 50.0 52.5 55.0\n57.5 60.0 62.5 65.0 67.5 70.0 72.5 75.0 77.5 80.0 "
+    "82.5 85.0 87.5 {last}\n"
+)
+PV_I = (
+    "2200.0 2000.2 1950.0 1700.1 1328.4 1115.1 900.5 700.4 600.3 501.2 400.1 398.3 "
+    "380.9 400.2 390.5 320.0 185.0 100.6 40.1\n20.0 15.2 15.0 14.0 11.0 10.8 10.8 10.0 7.0 "
+    "4.0 1.2 0.0 0.0 0.0 0.0 0.0 1.0 {tail}\n"
+)
 
 
 def _pv(n_h=1, last="90.0", h="0.0", first_i="2200.0", tail="0.0") -> str:
@@ -317,13 +434,18 @@ def test_photometric_viewer_extractor_cases() -> None:
 
 
 def test_photometric_viewer_metadata_joining() -> None:
-    header = ("IESNA:LM-63-1995\n[KEY] Value\n[KEY] Value 2\n[OTHER_KEY] Other Value\n"
-              "[Multiple Words]\n[MULTILINE_PROPERTY2] First line\n[MORE] Second line\n"
-              "[MORE] Third line\n")
+    header = (
+        "IESNA:LM-63-1995\n[KEY] Value\n[KEY] Value 2\n[OTHER_KEY] Other Value\n"
+        "[Multiple Words]\n[MULTILINE_PROPERTY2] First line\n[MORE] Second line\n"
+        "[MORE] Third line\n"
+    )
     p = parse_ies(header + make_ies([0, 90], [0], 1.0).split("\n", 2)[2])
-    assert p.keywords == {"KEY": "Value\nValue 2", "OTHER_KEY": "Other Value",
-                          "Multiple Words": "",
-                          "MULTILINE_PROPERTY2": "First line\nSecond line\nThird line"}
+    assert p.keywords == {
+        "KEY": "Value\nValue 2",
+        "OTHER_KEY": "Other Value",
+        "Multiple Words": "",
+        "MULTILINE_PROPERTY2": "First line\nSecond line\nThird line",
+    }
 
 
 # --- lidrs src/io/ies/tests.rs -----------------------------------------------------------
@@ -356,8 +478,16 @@ def test_lidrs_basic_parse() -> None:
     assert (p.width, p.length, p.height) == (0.0, 0.0, 0.0)
     assert p.vertical_angles.tolist() == [0.0, 5.0, 10.0, 20.0, 30.0, 45.0, 65.0, 90.0]
     assert p.horizontal_angles.tolist() == [0.0]
-    assert p.candela_raw.ravel().tolist() == [1000.0, 1100.0, 1300.0, 1150.0, 930.0, 650.0,
-                                              350.0, 0.0]
+    assert p.candela_raw.ravel().tolist() == [
+        1000.0,
+        1100.0,
+        1300.0,
+        1150.0,
+        930.0,
+        650.0,
+        350.0,
+        0.0,
+    ]
     assert p.keywords["TEST"] == "Simple demo intensity distribution"
 
 
@@ -370,20 +500,24 @@ def test_lidrs_iesna2002_example(profiles) -> None:
     # lidrs joins [MORE] with a space; this API joins with "\n" (appleseed, photometric-viewer)
     assert kw["OTHER"].replace("\n", " ") == (
         "This luminaire is useful as an indirect flood and to reduce light pollution in down "
-        "light applications.")
+        "light applications."
+    )
     # TILT=INCLUDE block (lidrs VALUES_TEST) and the data after it stays aligned
     assert (p.tilt, p.tilt_geometry) == ("INCLUDE", 1)
     np.testing.assert_array_equal(p.tilt_angles, np.arange(0.0, 181.0, 15.0))
-    np.testing.assert_allclose(p.tilt_factors, [1.0, .95, .94, .90, .88, .87, .98, .87, .88,
-                                                .90, .94, .95, 1.0])
+    np.testing.assert_allclose(
+        p.tilt_factors, [1.0, 0.95, 0.94, 0.90, 0.88, 0.87, 0.98, 0.87, 0.88, 0.90, 0.94, 0.95, 1.0]
+    )
     assert (p.n_lamps, p.lumens_per_lamp, p.multiplier) == (1, 50000.0, 1.0)
     assert (p.width, p.length, p.height, p.units_type) == (0.5, 0.6, 0.0, 1)
     assert p.input_watts == 495.0
     assert p.vertical_angles.tolist() == [0, 22.5, 45, 67.5, 90]
     assert p.horizontal_angles.tolist() == [0, 45, 90]
-    assert p.candela_raw.tolist() == [[100000, 50000, 25000, 10000, 5000],
-                                      [100000, 35000, 16000, 8000, 3000],
-                                      [100000, 20000, 10000, 5000, 1000]]
+    assert p.candela_raw.tolist() == [
+        [100000, 50000, 25000, 10000, 5000],
+        [100000, 35000, 16000, 8000, 3000],
+        [100000, 20000, 10000, 5000, 1000],
+    ]
     # lidrs photweb: quadrant symmetry resolves into 8 planes (0, 45, ..., 315)
     theta = np.radians(p.vertical_angles)
     for k, plane in enumerate(range(0, 360, 45)):
@@ -406,10 +540,15 @@ def test_mdlsdk_type_b_loads(profiles) -> None:
 
 @pytest.mark.parametrize(
     ("first", "version"),
-    [("IESNA91", "LM-63-1991"), ("IESNA:LM-63-1995", "LM-63-1995"),
-     ("IESNA:LM-63-2002", "LM-63-2002"), ("IESNA: LM-63-2002", "LM-63-2002"),
-     ("IES:LM-63-2019", "LM-63-2019"), ("Some free text", "LM-63-1986"),
-     ("IESNA", "LM-63-1986")],
+    [
+        ("IESNA91", "LM-63-1991"),
+        ("IESNA:LM-63-1995", "LM-63-1995"),
+        ("IESNA:LM-63-2002", "LM-63-2002"),
+        ("IESNA: LM-63-2002", "LM-63-2002"),
+        ("IES:LM-63-2019", "LM-63-2019"),
+        ("Some free text", "LM-63-1986"),
+        ("IESNA", "LM-63-1986"),
+    ],
 )
 def test_appleseed_version_detection(first: str, version: str) -> None:
     p = parse_ies(make_ies([0, 90], [0], 1.0, first=first))
@@ -428,8 +567,10 @@ def test_appleseed_numbers() -> None:
 
 
 def test_appleseed_more_joining() -> None:
-    p = parse_ies("IESNA:LM-63-1995\n[TEST] a\n[MORE] b\n[MORE]c\n"
-                  + make_ies([0, 90], [0], 1.0).split("\n", 2)[2])
+    p = parse_ies(
+        "IESNA:LM-63-1995\n[TEST] a\n[MORE] b\n[MORE]c\n"
+        + make_ies([0, 90], [0], 1.0).split("\n", 2)[2]
+    )
     assert p.keywords["TEST"] == "a\nb\nc"
 
 
@@ -449,7 +590,7 @@ def test_stripes_uniform_and_nonuniform_identical(profiles) -> None:
     # [DESCRIPTION2/3]: bottom cap (0..9) .25, top cap (170..180) .75, stripes every 10 deg
     centres = np.radians([4.5, 15, 25, 35, 95, 105, 165, 175])
     for p in (uni, non):
-        np.testing.assert_allclose(p.sample(centres, 0.3), [.25, 1, 0, 1, 1, 0, 0, .75])
+        np.testing.assert_allclose(p.sample(centres, 0.3), [0.25, 1, 0, 1, 1, 0, 0, 0.75])
 
 
 def test_linear_vertical_ramp(profiles) -> None:
@@ -468,8 +609,10 @@ THETA = RNG.uniform(0.0, PI, 400)
 PHI = RNG.uniform(0.0, 2 * PI, 400)
 
 
-@pytest.mark.parametrize("fname", ["photon__1.ies", "iesna__overhead.ies",
-                                   "arnoldusd__test_0075_12.IES", "photon__7.ies"])
+@pytest.mark.parametrize(
+    "fname",
+    ["photon__1.ies", "iesna__overhead.ies", "arnoldusd__test_0075_12.IES", "photon__7.ies"],
+)
 def test_quadrant_symmetry(fname: str, profiles) -> None:
     p = profiles[fname]
     ref = p.sample(THETA, PHI)
@@ -478,19 +621,28 @@ def test_quadrant_symmetry(fname: str, profiles) -> None:
     assert ref.max() > 0.0
 
 
-@pytest.mark.parametrize("fname", ["photon__L1768-65BR30FL_FL55.ies", "luxcore__ASA_15M_R2.ies",
-                                   "iesna__medium-scatter.ies", "wagyx__CB1900-NGT.IES"])
+@pytest.mark.parametrize(
+    "fname",
+    [
+        "photon__L1768-65BR30FL_FL55.ies",
+        "luxcore__ASA_15M_R2.ies",
+        "iesna__medium-scatter.ies",
+        "wagyx__CB1900-NGT.IES",
+    ],
+)
 def test_bilateral_0_180_symmetry(fname: str, profiles) -> None:
     p = profiles[fname]
-    np.testing.assert_allclose(p.sample(THETA, 2 * PI - PHI), p.sample(THETA, PHI),
-                               rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(
+        p.sample(THETA, 2 * PI - PHI), p.sample(THETA, PHI), rtol=1e-12, atol=1e-12
+    )
     # listed planes are reproduced exactly, mirrored planes too
     theta = np.radians(p.vertical_angles)
     for k in (0, len(p.horizontal_angles) // 2, -1):
         phi = math.radians(p.horizontal_angles[k])
         np.testing.assert_allclose(p.sample(theta, phi), p.candela[k], rtol=1e-12, atol=1e-9)
-        np.testing.assert_allclose(p.sample(theta, 2 * PI - phi), p.candela[k],
-                                   rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(
+            p.sample(theta, 2 * PI - phi), p.candela[k], rtol=1e-12, atol=1e-9
+        )
     assert not np.allclose(p.sample(theta, 0.0), p.sample(theta, PI / 2))  # really asymmetric
 
 
@@ -515,8 +667,9 @@ def test_full_0_360_seam_continuous(fname: str, profiles) -> None:
     p = profiles[fname]
     theta = np.linspace(0.0, PI, 997)
     for eps in (1e-9, 1e-6):
-        np.testing.assert_allclose(p.sample(theta, 2 * PI - eps), p.sample(theta, eps),
-                                   rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(
+            p.sample(theta, 2 * PI - eps), p.sample(theta, eps), rtol=1e-6, atol=1e-9
+        )
     np.testing.assert_allclose(p.sample(theta, 2 * PI), p.sample(theta, 0.0))
 
 
@@ -536,11 +689,13 @@ def test_full_range_interpolates_across_seam() -> None:
 
 def test_vertical_range_outside_is_zero() -> None:
     down = parse_ies(make_ies([0, 45, 90], [0], [[3.0, 2.0, 1.0]]))
-    np.testing.assert_allclose(down.sample(np.radians([0, 45, 90, 90.001, 135, 180]), 0.0),
-                               [3, 2, 1, 0, 0, 0])
+    np.testing.assert_allclose(
+        down.sample(np.radians([0, 45, 90, 90.001, 135, 180]), 0.0), [3, 2, 1, 0, 0, 0]
+    )
     up = parse_ies(make_ies([90, 135, 180], [0], [[1.0, 2.0, 3.0]]))
-    np.testing.assert_allclose(up.sample(np.radians([0, 89.999, 90, 135, 180]), 1.0),
-                               [0, 0, 1, 2, 3])
+    np.testing.assert_allclose(
+        up.sample(np.radians([0, 89.999, 90, 135, 180]), 1.0), [0, 0, 1, 2, 3]
+    )
     sub = parse_ies(make_ies([20, 40], [0], [[1.0, 3.0]]))
     np.testing.assert_allclose(sub.sample(np.radians([10, 20, 30, 40, 50]), 0.0), [0, 1, 2, 3, 0])
 
@@ -559,11 +714,11 @@ def test_type_b_frame_and_mirror() -> None:
     assert by_v.sample(PI - 0.01, 0.0) == 0.0  # upper hemisphere: |V| > 90
     by_h = parse_ies(make_ies(v, h, (h[:, None] + 90.0) * np.ones((1, v.size)), ptype=2))
     # H is the latitude towards -Y (clockwise): +Y is H = -90, -Y is H = +90
-    np.testing.assert_allclose(by_h.sample(PI / 2, [PI / 2, -PI / 2, 0.0]), [0, 180, 90],
-                               atol=1e-9)
+    np.testing.assert_allclose(by_h.sample(PI / 2, [PI / 2, -PI / 2, 0.0]), [0, 180, 90], atol=1e-9)
     # laterally symmetric file (H 0..90) == the explicit -90..90 file
-    half = parse_ies(make_ies(v, h[h >= 0], np.abs(h[h >= 0])[:, None] + v[None, :] / 100 + 1,
-                              ptype=2))
+    half = parse_ies(
+        make_ies(v, h[h >= 0], np.abs(h[h >= 0])[:, None] + v[None, :] / 100 + 1, ptype=2)
+    )
     full = parse_ies(make_ies(v, h, np.abs(h)[:, None] + v[None, :] / 100 + 1, ptype=2))
     assert half.symmetry == "lateral"
     np.testing.assert_allclose(half.sample(THETA, PHI), full.sample(THETA, PHI), rtol=1e-12)
@@ -580,8 +735,9 @@ def test_type_a_frame() -> None:
     np.testing.assert_allclose(by_v.sample(theta, 0.3), np.degrees(theta), atol=1e-9)
     by_h = parse_ies(make_ies(v, h, (h[:, None] + 90.0) * np.ones((1, v.size)), ptype=3))
     # H is the longitude from +X, clockwise seen from above (towards -Y)
-    np.testing.assert_allclose(by_h.sample(PI / 2, np.radians([0, 30, -30, 90, -90])),
-                               [90, 60, 120, 0, 180], atol=1e-9)
+    np.testing.assert_allclose(
+        by_h.sample(PI / 2, np.radians([0, 30, -30, 90, -90])), [90, 60, 120, 0, 180], atol=1e-9
+    )
     assert by_h.sample(PI / 2, PI) == 0.0  # behind: |H| > 90
 
 
@@ -627,8 +783,13 @@ def test_power_flux_closed_forms() -> None:
 
 @pytest.mark.parametrize(
     "fname",
-    ["luxtest__bega_50988.6k3.ies", "luxtest__bega_84659K4.ies", "luxtest__bega_84693k4.ies",
-     "luxtest__bega_omni001_1238lm.ies", "luxtest__bega_omni002_4777lm.ies"],
+    [
+        "luxtest__bega_50988.6k3.ies",
+        "luxtest__bega_84659K4.ies",
+        "luxtest__bega_84693k4.ies",
+        "luxtest__bega_omni001_1238lm.ies",
+        "luxtest__bega_omni002_4777lm.ies",
+    ],
 )
 def test_flux_matches_manufacturer_lumens(fname: str, profiles) -> None:
     p = profiles[fname]  # absolute photometry; [LAMP] states the luminaire output
@@ -638,10 +799,19 @@ def test_flux_matches_manufacturer_lumens(fname: str, profiles) -> None:
 
 
 RELATIVE_PHOTOMETRY = (  # lumens/lamp > 0 and real measurements (not the synthetic ones)
-    "arnoldusd__test_0075_12.IES", "arnoldusd__test_0075_6.ies", "arnoldusd__test_1316_light.ies",
-    "iesna__defined.ies", "iesna__medium-scatter.ies", "iesna__overhead.ies",
-    "iesna__soft-arrow.ies", "luxcore__ASA_15M_R2.ies", "photon__1.ies", "photon__7.ies",
-    "photon__9.IES", "photon__L1768-65BR30FL_FL55.ies", "wagyx__CB1210-2LF13.IES",
+    "arnoldusd__test_0075_12.IES",
+    "arnoldusd__test_0075_6.ies",
+    "arnoldusd__test_1316_light.ies",
+    "iesna__defined.ies",
+    "iesna__medium-scatter.ies",
+    "iesna__overhead.ies",
+    "iesna__soft-arrow.ies",
+    "luxcore__ASA_15M_R2.ies",
+    "photon__1.ies",
+    "photon__7.ies",
+    "photon__9.IES",
+    "photon__L1768-65BR30FL_FL55.ies",
+    "wagyx__CB1210-2LF13.IES",
 )
 
 
@@ -654,8 +824,16 @@ def test_relative_photometry_flux_below_lamp_lumens(fname: str, profiles) -> Non
     assert 0.2 * p.n_lamps * p.lumens_per_lamp < p.flux() <= p.n_lamps * p.lumens_per_lamp
 
 
-@pytest.mark.parametrize("fname", ["photon__1.ies", "luxtest__bega_84659K4.ies",
-                                   "mdlsdk__test.ies", "rpr__ies_light_1.ies", "photon__9.IES"])
+@pytest.mark.parametrize(
+    "fname",
+    [
+        "photon__1.ies",
+        "luxtest__bega_84659K4.ies",
+        "mdlsdk__test.ies",
+        "rpr__ies_light_1.ies",
+        "photon__9.IES",
+    ],
+)
 def test_flux_agrees_with_sampled_quadrature(fname: str, profiles) -> None:
     p = profiles[fname]
     assert p.flux() == pytest.approx(_brute_flux(p), rel=3e-3)
@@ -690,8 +868,10 @@ def test_bake_table_rejects_bad_sizes(profiles) -> None:
 
 def test_sample_broadcasts(profiles) -> None:
     p = profiles["luxcore__ASA_15M_R2.ies"]
-    out = p.sample(np.linspace(0, PI, 7)[:, None, None], np.linspace(0, 2 * PI, 5)[None, :, None]
-                   + np.zeros((1, 1, 3)))
+    out = p.sample(
+        np.linspace(0, PI, 7)[:, None, None],
+        np.linspace(0, 2 * PI, 5)[None, :, None] + np.zeros((1, 1, 3)),
+    )
     assert out.shape == (7, 5, 3) and out.dtype == np.float64
     assert np.ndim(p.sample(0.1, 0.2)) == 0
 
@@ -705,19 +885,27 @@ def test_separators_wrapping_and_line_endings() -> None:
         "crlf": lambda s: s.replace("\n", "\r\n"),
         "cr": lambda s: s.replace("\n", "\r"),
         "no_final_newline": lambda s: s.rstrip("\n"),
-        "commas": lambda s: s.split("TILT=NONE")[0] + "TILT=NONE" + s.split("TILT=NONE")[1]
-        .replace(" ", ","),
-        "tabs_blank_lines": lambda s: s.replace(" ", "\t\t").replace("TILT=NONE\n",
-                                                                     "TILT=NONE\n\n\n"),
-        "one_per_line": lambda s: s.split("TILT=NONE")[0] + "TILT=NONE\n"
-        + "\n".join(s.split("TILT=NONE")[1].split()),
-        "long_line": lambda s: s.split("TILT=NONE")[0] + "TILT=NONE\n"
-        + " ".join(s.split("TILT=NONE")[1].split()) + " " * 300,
+        "commas": lambda s: (
+            s.split("TILT=NONE")[0] + "TILT=NONE" + s.split("TILT=NONE")[1].replace(" ", ",")
+        ),
+        "tabs_blank_lines": lambda s: s.replace(" ", "\t\t").replace(
+            "TILT=NONE\n", "TILT=NONE\n\n\n"
+        ),
+        "one_per_line": lambda s: (
+            s.split("TILT=NONE")[0] + "TILT=NONE\n" + "\n".join(s.split("TILT=NONE")[1].split())
+        ),
+        "long_line": lambda s: (
+            s.split("TILT=NONE")[0]
+            + "TILT=NONE\n"
+            + " ".join(s.split("TILT=NONE")[1].split())
+            + " " * 300
+        ),
         "leading_dots": lambda s: s.replace("1.0 1.0 10", ".1e1 1. 10"),
     }
     for name, f in variants.items():
-        p = parse_ies(f(make_ies([0, 45, 90], [0, 90], [[3.0, 2.0, 1.0], [6.0, 5.0, 4.0]])),
-                      name=name)
+        p = parse_ies(
+            f(make_ies([0, 45, 90], [0, 90], [[3.0, 2.0, 1.0], [6.0, 5.0, 4.0]])), name=name
+        )
         assert p.candela_raw.tolist() == ref.candela_raw.tolist(), name
         assert p.ballast_factor == 1.0 and p.warnings == [], name
 
@@ -731,12 +919,16 @@ def test_latin1_bom_and_keyword_spacing() -> None:
 
 
 def test_tilt_include_wrapped_and_tilt_file() -> None:
-    text = make_ies([0, 90], [0, 90], [[1.0, 2.0], [3.0, 4.0]],
-                    tilt="TILT=INCLUDE\n3\n4 0\n30 60\n90 1.0 .9\n.8\n.7")
+    text = make_ies(
+        [0, 90],
+        [0, 90],
+        [[1.0, 2.0], [3.0, 4.0]],
+        tilt="TILT=INCLUDE\n3\n4 0\n30 60\n90 1.0 .9\n.8\n.7",
+    )
     p = parse_ies(text)
     assert (p.tilt, p.tilt_geometry) == ("INCLUDE", 3)
     assert p.tilt_angles.tolist() == [0, 30, 60, 90]
-    np.testing.assert_allclose(p.tilt_factors, [1.0, .9, .8, .7])
+    np.testing.assert_allclose(p.tilt_factors, [1.0, 0.9, 0.8, 0.7])
     assert p.candela_raw.tolist() == [[1.0, 2.0], [3.0, 4.0]]
     q = parse_ies(make_ies([0, 90], [0], 1.0, tilt="TILT= lamp tilt.dat "))
     assert q.tilt == "lamp tilt.dat" and q.tilt_angles is None
@@ -745,8 +937,10 @@ def test_tilt_include_wrapped_and_tilt_file() -> None:
 
 def test_split_ten_number_line_and_2019() -> None:
     # iesna__defined.ies style "1 13172.61 1 / 37 1 / 1 / 2 / 0 0 0"; 2019 generation type
-    text = ("IES:LM-63-2019\n[TEST] t\nTILT=NONE\n1 1000 1\n2 1\n1\n2\n0 0 0\n"
-            "1.0 1.10000 50\n0 90\n0\n2 4\n")
+    text = (
+        "IES:LM-63-2019\n[TEST] t\nTILT=NONE\n1 1000 1\n2 1\n1\n2\n0 0 0\n"
+        "1.0 1.10000 50\n0 90\n0\n2 4\n"
+    )
     p = parse_ies(text)
     assert p.version == "LM-63-2019"
     assert (p.lumens_per_lamp, p.file_generation_type, p.input_watts) == (1000.0, 1.1, 50.0)

@@ -14,8 +14,9 @@ from hypothesis import strategies as st
 from stb_hydra.scene.ies import IesError, IesProfile, parse_ies
 
 NAME = "fuzz.ies"
-SETTINGS = settings(max_examples=500, deadline=None, derandomize=True,
-                    suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(
+    max_examples=500, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
 
 
 @pytest.fixture(scope="session")
@@ -52,8 +53,16 @@ NUMERIC = st.text(alphabet="0123456789 .-+eE,\t\n", max_size=400)
 
 
 @SETTINGS
-@given(st.sampled_from(["IESNA:LM-63-2002\n[TEST] x\nTILT=NONE\n", "IESNA91\nTILT=INCLUDE\n",
-                        "free text\nTILT=NONE\n"]), NUMERIC)
+@given(
+    st.sampled_from(
+        [
+            "IESNA:LM-63-2002\n[TEST] x\nTILT=NONE\n",
+            "IESNA91\nTILT=INCLUDE\n",
+            "free text\nTILT=NONE\n",
+        ]
+    ),
+    NUMERIC,
+)
 def test_numeric_soup_after_tilt(head: str, body: str) -> None:
     _check(head + body)
 
@@ -71,17 +80,27 @@ def test_generated_grids_sample_cleanly(n_v: int, n_h: int, ptype: int, data) ->
     angle = lambda r: st.floats(*r, allow_nan=False).map(lambda x: round(x, 3))  # noqa: E731
     v = sorted(set(data.draw(st.lists(angle(v_range), min_size=n_v, max_size=n_v))))
     h = sorted(set(data.draw(st.lists(angle(h_range), min_size=n_h, max_size=n_h))))
-    cd = data.draw(st.lists(st.floats(0, 1e6, allow_nan=False), min_size=len(v) * len(h),
-                            max_size=len(v) * len(h)))
-    text = (f"IESNA:LM-63-2002\nTILT=NONE\n1 -1 1 {len(v)} {len(h)} {ptype} 2 0 0 0\n1 1 0\n"
-            + " ".join(map(repr, v)) + "\n" + " ".join(map(repr, h)) + "\n"
-            + " ".join(map(repr, cd)) + "\n")
+    cd = data.draw(
+        st.lists(
+            st.floats(0, 1e6, allow_nan=False), min_size=len(v) * len(h), max_size=len(v) * len(h)
+        )
+    )
+    text = (
+        f"IESNA:LM-63-2002\nTILT=NONE\n1 -1 1 {len(v)} {len(h)} {ptype} 2 0 0 0\n1 1 0\n"
+        + " ".join(map(repr, v))
+        + "\n"
+        + " ".join(map(repr, h))
+        + "\n"
+        + " ".join(map(repr, cd))
+        + "\n"
+    )
     _check(text)
 
 
 def _mutate(raw: bytes, data) -> bytes:
-    op = data.draw(st.sampled_from(["bytes", "truncate", "delete_token", "dup_token",
-                                    "insert_token"]))
+    op = data.draw(
+        st.sampled_from(["bytes", "truncate", "delete_token", "dup_token", "insert_token"])
+    )
     if op == "bytes":
         buf = bytearray(raw)
         for _ in range(data.draw(st.integers(1, 6))):
@@ -97,13 +116,30 @@ def _mutate(raw: bytes, data) -> bytes:
         return raw[:a] + raw[b:]
     if op == "dup_token":
         return raw[:b] + b" " + raw[a:b] + raw[b:]
-    token = data.draw(st.sampled_from([b"-1", b"0", b"1e9", b"nan", b"TILT=NONE", b"[MORE]",
-                                       b"\r", b"x", b"99999", b".5", b"360", b"-90"]))
+    token = data.draw(
+        st.sampled_from(
+            [
+                b"-1",
+                b"0",
+                b"1e9",
+                b"nan",
+                b"TILT=NONE",
+                b"[MORE]",
+                b"\r",
+                b"x",
+                b"99999",
+                b".5",
+                b"360",
+                b"-90",
+            ]
+        )
+    )
     return raw[:a] + token + b" " + raw[a:]
 
 
-@settings(max_examples=1500, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(
+    max_examples=1500, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
 @given(st.data())
 def test_mutated_real_files(real_files: list[bytes], data) -> None:
     raw = data.draw(st.sampled_from(real_files))

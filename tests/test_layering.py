@@ -17,8 +17,14 @@ import pytest
 
 @pytest.mark.parametrize(
     "module",
-    ["stb_hydra.shadows", "stb_hydra.shadows.capture", "stb_hydra.scene.stage_io",
-     "stb_hydra.scenegen.lights", "stb_hydra.scenegen.chess", "stb_hydra.scenegen.orbs"],
+    [
+        "stb_hydra.shadows",
+        "stb_hydra.shadows.capture",
+        "stb_hydra.scene.stage_io",
+        "stb_hydra.scenegen.lights",
+        "stb_hydra.scenegen.chess",
+        "stb_hydra.scenegen.orbs",
+    ],
 )
 def test_gl_free_modules_load_without_renderer_or_moderngl(module: str):
     code = (

@@ -31,9 +31,7 @@ from stb_hydra.renderer.lighting.light_tree_build import (
     unpack_bits,
 )
 
-SETTINGS = settings(
-    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow]
-)
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 def intervals(rng: np.random.Generator, n: int, spread: float = 50.0):
@@ -164,7 +162,7 @@ def test_traversal_visits_exactly_the_overlapping_lights(n, leaf, seed, queries)
     # add queries exactly at interval end points (closed intervals)
     qs = [(a, a + w) for a, w in queries] + [(float(lo[0]), None), (float(hi[-1]), None)]
     for q_lo, q_hi in qs:
-        for qh in ([q_hi] if q_hi is not None else [None]):
+        for qh in [q_hi] if q_hi is not None else [None]:
             got, ranges, reads = hit_lights(t, 0, lo_s, hi_s, q_lo, qh)
             want = sorted(brute_force(lo_s, hi_s, q_lo, qh).tolist())
             assert got == want
@@ -220,9 +218,9 @@ def test_multi_cell_build_matches_brute_force_per_cell(cells, leaf, seed):
             want = sorted((a + brute_force(lo[members], hi[members], float(q))).tolist())
             assert got == want
         if not (is_tree[c] and k > 0):
-            assert t.cell_nodes[c] == 1 and unpack_bits(t.nodes_of(c)[0, 3].astype(np.uint32))[
-                1
-            ] == k
+            assert (
+                t.cell_nodes[c] == 1 and unpack_bits(t.nodes_of(c)[0, 3].astype(np.uint32))[1] == k
+            )
 
 
 def test_cap_keeps_first_lights_and_counts_drops():
@@ -240,9 +238,7 @@ def test_heuristic_lists_for_covering_lights_trees_for_small_ones():
     # cell 0: 8 lights covering the whole cell depth [10, 20]; cell 1: 8 tiny lights
     lo = np.r_[np.full(8, 0.0), np.linspace(10, 19, 8)]
     hi = np.r_[np.full(8, 30.0), np.linspace(10, 19, 8) + 0.2]
-    lists = CellLists(
-        np.array([0, 8]), np.array([8, 8]), np.arange(16), np.array([8, 8])
-    )
+    lists = CellLists(np.array([0, 8]), np.array([8, 8]), np.arange(16), np.array([8, 8]))
     coe = np.repeat([0, 1], 8)
     cl, ch = np.array([10.0, 10.0]), np.array([20.0, 20.0])
     hyb = choose_trees(lists, coe, lo, hi, cl, ch, leaf=2, mode="hybrid")

@@ -25,13 +25,16 @@ def python_api_block() -> str:
 @pytest.mark.gl
 def test_readme_python_example_runs():
     code = python_api_block()
-    for big, small in (("width=256, height=144", "width=64, height=36"),
-                       ("width=745, height=360", "width=64, height=36"),
-                       ("accumulate=16", "accumulate=2")):
+    for big, small in (
+        ("width=256, height=144", "width=64, height=36"),
+        ("width=745, height=360", "width=64, height=36"),
+        ("accumulate=16", "accumulate=2"),
+    ):
         assert big in code, big
         code = code.replace(big, small)
-    r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True,
-                       timeout=300)
+    r = subprocess.run(
+        [sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=300
+    )
     assert r.returncode == 0, r.stderr
     assert "passes (execution order):" in r.stdout
 

@@ -215,13 +215,26 @@ def test_method_options_and_no_weight_cap(scene: Path, tmp_path: Path):
 
 def test_print_graph_describes_the_frame_and_renders_nothing(scene: Path, tmp_path: Path):
     out = tmp_path / "g.png"
-    r = stb("render", str(scene), str(out), "--width", "64", "--lighting", "stb",
-            "--aov", "smalltile", "--print-graph")
+    r = stb(
+        "render",
+        str(scene),
+        str(out),
+        "--width",
+        "64",
+        "--lighting",
+        "stb",
+        "--aov",
+        "smalltile",
+        "--print-graph",
+    )
     assert r.returncode == 0, r.stderr
     text = r.stdout
     assert "lighting method: stb" in text and "passes (execution order):" in text
-    order = [ln.split(".", 1)[1].split()[0] for ln in text.splitlines()
-             if ln[:4].strip().isdigit() and ". " in ln]
+    order = [
+        ln.split(".", 1)[1].split()[0]
+        for ln in text.splitlines()
+        if ln[:4].strip().isdigit() and ". " in ln
+    ]
     assert order.index("gbuffer") < order.index("hiz") < order.index("lighting")
     assert "debug_smalltile" in order and "debug_bigtile" not in order  # culled: not asked for
     assert not out.exists()

@@ -319,18 +319,24 @@ def Xform "W"
     ("surface", "why"),
     [
         ("", "no UsdPreviewSurface surface"),
-        ('uniform token info:id = "ND_standard_surface_surfaceshader"',
-         "surface shader 'ND_standard_surface_surfaceshader' is not UsdPreviewSurface"),
+        (
+            'uniform token info:id = "ND_standard_surface_surfaceshader"',
+            "surface shader 'ND_standard_surface_surfaceshader' is not UsdPreviewSurface",
+        ),
     ],
 )
 def test_material_without_preview_surface_uses_defaults(surface, why):
-    shader = f"""
+    shader = (
+        f"""
         token outputs:surface.connect = </W/M/S.outputs:surface>
         def Shader "S"
         {{
             {surface}
             token outputs:surface
-        }}""" if surface else ""
+        }}"""
+        if surface
+        else ""
+    )
     stage = usda_stage(
         f"""#usda 1.0
 def Xform "W"
@@ -392,9 +398,7 @@ def test_attribute_authored_between_population_and_first_sync_is_read():
     si = StageSceneIndex(stage)
     ri = RenderIndex(si, RenderDelegate())  # nothing synced yet
     # New attribute specs, no schema change (which would resync the whole prim).
-    light.GetPrim().CreateAttribute("inputs:shaping:cone:angle", Sdf.ValueTypeNames.Float).Set(
-        30.0
-    )
+    light.GetPrim().CreateAttribute("inputs:shaping:cone:angle", Sdf.ValueTypeNames.Float).Set(30.0)
     light.CreateColorAttr((1.0, 0.0, 0.0))
     si.apply_pending_updates()
     ri.sync_all()

@@ -30,8 +30,13 @@ USDA_FILES = sorted(SCENES.rglob("*.usda"))
 IES_FILES = sorted((SCENES / "ies").glob("*.ies"))
 PREFABS = sorted((SCENES / "prefabs").glob("*.usda"))
 DEFAULT = SCENES / "default.usda"
-TOOLS = ["gen_lights_scene", "gen_chess_lights", "gen_orbs", "make_ies_profiles",
-         "gen_prefab_library"]
+TOOLS = [
+    "gen_lights_scene",
+    "gen_chess_lights",
+    "gen_orbs",
+    "make_ies_profiles",
+    "gen_prefab_library",
+]
 
 #: Generous wall-clock bound for one generator call at 10,000 lights on a slow
 #: 2-core CI machine (measured ~0.5-1 s here).
@@ -44,8 +49,11 @@ GEN_SECONDS = 10.0
 
 
 def lights_of(stage: Usd.Stage) -> list[Usd.Prim]:
-    return [p for p in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies())
-            if p.HasAPI(UsdLux.LightAPI)]
+    return [
+        p
+        for p in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies())
+        if p.HasAPI(UsdLux.LightAPI)
+    ]
 
 
 def world_translation(prim: Usd.Prim, t: float) -> Gf.Vec3d:
@@ -56,8 +64,9 @@ def world_translation(prim: Usd.Prim, t: float) -> Gf.Vec3d:
 def transform_varies(prim: Usd.Prim, times) -> bool:
     m0 = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode(times[0]))
     return any(
-        not Gf.IsClose(UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode(t)),
-                       m0, 1e-6)
+        not Gf.IsClose(
+            UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode(t)), m0, 1e-6
+        )
         for t in times[1:]
     )
 
@@ -85,7 +94,7 @@ def read_ies(path: Path) -> dict:
         keywords.setdefault(m.group(1), []).append(m.group(2))
         i += 1
     assert lines[i].strip() == "TILT=NONE", f"{path.name}: expected TILT=NONE"
-    tokens = " ".join(lines[i + 1:]).split()
+    tokens = " ".join(lines[i + 1 :]).split()
     nums = [float(t) for t in tokens]
     (n_lamps, lumens, mult, n_v, n_h, ptype, units, _w, _l, _h) = nums[:10]
     ballast, _future, watts = nums[10:13]
@@ -96,18 +105,32 @@ def read_ies(path: Path) -> dict:
         f"{n_v} + {n_h} + {n_v}*{n_h} = {n_v + n_h + n_v * n_h}"
     )
     v = np.array(body[:n_v])
-    h = np.array(body[n_v:n_v + n_h])
-    cd = np.array(body[n_v + n_h:]).reshape(n_h, n_v) * mult
-    return dict(keywords=keywords, lamps=n_lamps, lumens=lumens, ptype=int(ptype),
-                units=int(units), ballast=ballast, watts=watts, v=v, h=h, cd=cd,
-                size=len(text.encode()))
+    h = np.array(body[n_v : n_v + n_h])
+    cd = np.array(body[n_v + n_h :]).reshape(n_h, n_v) * mult
+    return dict(
+        keywords=keywords,
+        lamps=n_lamps,
+        lumens=lumens,
+        ptype=int(ptype),
+        units=int(units),
+        ballast=ballast,
+        watts=watts,
+        v=v,
+        h=h,
+        cd=cd,
+        size=len(text.encode()),
+    )
 
 
 def ies_flux(v: np.ndarray, h: np.ndarray, cd: np.ndarray) -> float:
     """Type C flux by trapezoid integration (independent of tools/make_ies_profiles)."""
     th = np.radians(v)
-    ring = np.array([np.sum(0.5 * (r[1:] * np.sin(th[1:]) + r[:-1] * np.sin(th[:-1]))
-                            * np.diff(th)) for r in cd])
+    ring = np.array(
+        [
+            np.sum(0.5 * (r[1:] * np.sin(th[1:]) + r[:-1] * np.sin(th[:-1])) * np.diff(th))
+            for r in cd
+        ]
+    )
     if len(h) == 1:
         return float(2 * math.pi * ring[0])
     part = float(np.sum(0.5 * (ring[1:] + ring[:-1]) * np.diff(np.radians(h))))
@@ -130,12 +153,21 @@ def sphere_lumens(prim: Usd.Prim, hemispherical_ies: bool) -> tuple[float, float
 
 def test_scene_files_exist():
     names = {p.relative_to(SCENES).as_posix() for p in USDA_FILES}
-    for required in ("default.usda", "prefabs/street_lamp.usda", "prefabs/wall_torch.usda",
-                     "prefabs/ceiling_fixture.usda", "prefabs/neon_strip.usda",
-                     "prefabs/enemy_orb.usda"):
+    for required in (
+        "default.usda",
+        "prefabs/street_lamp.usda",
+        "prefabs/wall_torch.usda",
+        "prefabs/ceiling_fixture.usda",
+        "prefabs/neon_strip.usda",
+        "prefabs/enemy_orb.usda",
+    ):
         assert required in names
-    assert {p.name for p in IES_FILES} >= {"streetlamp_typeII.ies", "downlight_narrow.ies",
-                                          "wallwash.ies", "uplight.ies"}
+    assert {p.name for p in IES_FILES} >= {
+        "streetlamp_typeII.ies",
+        "downlight_narrow.ies",
+        "wallwash.ies",
+        "uplight.ies",
+    }
 
 
 @pytest.mark.parametrize("path", USDA_FILES, ids=lambda p: p.relative_to(SCENES).as_posix())
@@ -158,8 +190,13 @@ def test_scene_composes_and_resolves(path: Path):
             assert shader.GetIdAttr().Get() == "UsdPreviewSurface"
             for inp in shader.GetInputs():
                 assert not inp.HasConnectedSource(), f"{inp.GetAttr().GetPath()} is connected"
-                assert inp.GetBaseName() in {"diffuseColor", "roughness", "metallic",
-                                             "emissiveColor", "opacity"}
+                assert inp.GetBaseName() in {
+                    "diffuseColor",
+                    "roughness",
+                    "metallic",
+                    "emissiveColor",
+                    "opacity",
+                }
 
 
 # --------------------------------------------------------------------------------------
@@ -269,8 +306,11 @@ def test_enemy_orb_dynamic():
 def test_prefab_library_in_sync():
     from tools import gen_prefab_library
 
-    stale = [p for p, text in gen_prefab_library.outputs().items()
-             if p.read_text(encoding="utf-8") != text]
+    stale = [
+        p
+        for p, text in gen_prefab_library.outputs().items()
+        if p.read_text(encoding="utf-8") != text
+    ]
     assert not stale, f"regenerate with tools/gen_prefab_library.py: {stale}"
 
 
@@ -312,9 +352,15 @@ def test_default_scene_animation(default_stage: Usd.Stage):
     lights = lights_of(stage)
     moving = [p for p in lights if transform_varies(p, times)]
     assert len(moving) >= 3, [str(p.GetPath()) for p in moving]
-    varying_attr = [p for p in lights
-                    if any(a.ValueMightBeTimeVarying() for a in p.GetAttributes()
-                           if a.GetName().startswith("inputs:"))]
+    varying_attr = [
+        p
+        for p in lights
+        if any(
+            a.ValueMightBeTimeVarying()
+            for a in p.GetAttributes()
+            if a.GetName().startswith("inputs:")
+        )
+    ]
     assert varying_attr, "expected at least one flickering light"
     torch = Usd.Stage.Open(str(SCENES / "prefabs" / "wall_torch.usda"))
     nominal = torch.GetPrimAtPath("/WallTorch/Light").GetAttribute("inputs:intensity").Get()
@@ -353,11 +399,14 @@ def test_default_scene_camera_and_budget(default_stage: Usd.Stage):
     # the camera sees the courtyard centre
     gc = cam.GetCamera(Usd.TimeCode(stage.GetStartTimeCode()))
     ndc = (gc.frustum.ComputeViewMatrix() * gc.frustum.ComputeProjectionMatrix()).Transform(
-        Gf.Vec3d(0, 0, 0))
+        Gf.Vec3d(0, 0, 0)
+    )
     assert abs(ndc[0]) < 0.6 and abs(ndc[1]) < 0.6
-    tris = sum(sum(c - 2 for c in UsdGeom.Mesh(p).GetFaceVertexCountsAttr().Get())
-               for p in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies())
-               if p.IsA(UsdGeom.Mesh))
+    tris = sum(
+        sum(c - 2 for c in UsdGeom.Mesh(p).GetFaceVertexCountsAttr().Get())
+        for p in Usd.PrimRange.Stage(stage, Usd.TraverseInstanceProxies())
+        if p.IsA(UsdGeom.Mesh)
+    )
     assert tris < 50_000, tris
 
 
@@ -422,22 +471,30 @@ def test_ies_files_parse_with_project_parser():
 
 @pytest.mark.parametrize("tool", TOOLS)
 def test_generator_cli_help(tool: str):
-    r = subprocess.run([sys.executable, str(REPO / "tools" / f"{tool}.py"), "--help"],
-                       capture_output=True, text=True, timeout=60)
+    r = subprocess.run(
+        [sys.executable, str(REPO / "tools" / f"{tool}.py"), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert r.returncode == 0, r.stderr
     assert "usage" in r.stdout.lower()
 
 
 @pytest.mark.parametrize("module", ["lights", "chess", "orbs"])
 def test_generator_module_cli_help(module: str):
-    r = subprocess.run([sys.executable, "-m", f"stb_hydra.scenegen.{module}", "--help"],
-                       capture_output=True, text=True, timeout=60, cwd=Path.home())
+    r = subprocess.run(
+        [sys.executable, "-m", f"stb_hydra.scenegen.{module}", "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=Path.home(),
+    )
     assert r.returncode == 0, r.stderr
     assert "usage" in r.stdout.lower()
 
 
-def test_generator_inputs_without_a_checkout(tmp_path: Path, monkeypatch, testdata: Path,
-                                             capsys):
+def test_generator_inputs_without_a_checkout(tmp_path: Path, monkeypatch, testdata: Path, capsys):
     """Installed (no usd_scenes next to the package, no $STB_SHARED): generators that
     need no input asset still work, the others say what to pass; explicit paths give
     the same text as the checkout's defaults."""
@@ -449,8 +506,10 @@ def test_generator_inputs_without_a_checkout(tmp_path: Path, monkeypatch, testda
     assert "SphereLight" in lights.lights_scene_usda(8, types="sphere,disk")
     with pytest.raises(FileNotFoundError, match="ies_dir / --ies-dir"):
         lights.lights_scene_usda(8, types="ies")
-    assert lights.lights_scene_usda(8, seed=1, types="ies,sphere",
-                                    ies_dir=SCENES / "ies") == with_checkout
+    assert (
+        lights.lights_scene_usda(8, seed=1, types="ies,sphere", ies_dir=SCENES / "ies")
+        == with_checkout
+    )
     with pytest.raises(SystemExit):
         lights.main([str(tmp_path / "l.usda"), "--lights", "8"])
     assert "IES profiles not found" in capsys.readouterr().err
@@ -476,8 +535,9 @@ def test_gen_lights_counts_and_speed(n: int):
 
     m = max(3, n // 100)
     t = time.perf_counter()
-    stage = build_lights_stage(n_lights=n, seed=5, animated=m, shadow_fraction=0.3,
-                               dynamic_fraction=0.5)
+    stage = build_lights_stage(
+        n_lights=n, seed=5, animated=m, shadow_fraction=0.3, dynamic_fraction=0.5
+    )
     elapsed = time.perf_counter() - t
     assert elapsed < GEN_SECONDS, f"{n} lights took {elapsed:.1f} s"
     assert stage.GetCompositionErrors() == []
@@ -488,15 +548,19 @@ def test_gen_lights_counts_and_speed(n: int):
     assert transform_varies(anim[0], [1, 12, 24])
     kinds = Counter(p.GetTypeName() for p in lights)
     shadowed = sum(bool(UsdLux.ShadowAPI(p).GetShadowEnableAttr().Get()) for p in lights)
-    dynamic = sum(p.GetAttribute("stb:shadow:update").Get() == "dynamic"
-                  for p in lights if p.HasAPI("StbLightAPI"))
+    dynamic = sum(
+        p.GetAttribute("stb:shadow:update").Get() == "dynamic"
+        for p in lights
+        if p.HasAPI("StbLightAPI")
+    )
     assert 0 < dynamic < shadowed < n
     if n >= 10_000:
         assert set(kinds) == {"SphereLight", "DiskLight", "RectLight"}
         assert abs(shadowed / n - 0.3) < 0.03
         ies = [p for p in lights if p.GetAttribute("inputs:shaping:ies:file").Get()]
-        assert ies and all(p.GetAttribute("inputs:shaping:ies:file").Get().resolvedPath
-                           for p in ies[:50])
+        assert ies and all(
+            p.GetAttribute("inputs:shaping:ies:file").Get().resolvedPath for p in ies[:50]
+        )
     heights = [world_translation(p, 1)[1] for p in lights[:200]]
     assert min(heights) >= 0.3 and max(heights) <= 3.5
     assert stage.GetPrimAtPath("/Camera").IsA(UsdGeom.Camera)
@@ -511,10 +575,38 @@ def test_gen_lights_deterministic(tmp_path: Path):
     c = gen_lights_scene.lights_scene_usda(500, seed=12, animated=20)
     assert a == b and a != c
     out1, out2 = tmp_path / "a" / "s.usda", tmp_path / "b" / "s.usda"
-    assert gen_lights_scene.main([str(out1), "--lights", "300", "--seed", "3",
-                                  "--animated", "10", "--types", "sphere,ies"]) == 0
-    assert gen_lights_scene.main([str(out2), "--lights", "300", "--seed", "3",
-                                  "--animated", "10", "--types", "sphere,ies"]) == 0
+    assert (
+        gen_lights_scene.main(
+            [
+                str(out1),
+                "--lights",
+                "300",
+                "--seed",
+                "3",
+                "--animated",
+                "10",
+                "--types",
+                "sphere,ies",
+            ]
+        )
+        == 0
+    )
+    assert (
+        gen_lights_scene.main(
+            [
+                str(out2),
+                "--lights",
+                "300",
+                "--seed",
+                "3",
+                "--animated",
+                "10",
+                "--types",
+                "sphere,ies",
+            ]
+        )
+        == 0
+    )
     assert out1.read_bytes() == out2.read_bytes()
     stage = Usd.Stage.Open(str(out1))
     assert stage.GetCompositionErrors() == []
@@ -546,8 +638,7 @@ def test_gen_chess_lights(tmp_path: Path, n: int):
     ref = stage.GetPrimAtPath("/World/ChessSet")
     assert ref.HasAuthoredReferences()
     assert not Path(ref.GetMetadata("references").prependedItems[0].assetPath).is_absolute()
-    meshes = [p for p in Usd.PrimRange(ref, Usd.TraverseInstanceProxies())
-              if p.IsA(UsdGeom.Mesh)]
+    meshes = [p for p in Usd.PrimRange(ref, Usd.TraverseInstanceProxies()) if p.IsA(UsdGeom.Mesh)]
     assert len(meshes) >= 20, "chess set did not resolve"
     assert stage.GetPrimAtPath("/World/ChessSet/White/Pawns").IsA(UsdGeom.PointInstancer)
     lights = lights_of(stage)
@@ -591,8 +682,9 @@ def test_gen_orbs_spawn_over_time(tmp_path: Path, n: int):
     assert len(orbs) == n and all(p.IsInstance() for p in orbs)
 
     def alive(f: float) -> int:
-        return sum(UsdGeom.Imageable(p).ComputeVisibility(Usd.TimeCode(f)) != "invisible"
-                   for p in orbs)
+        return sum(
+            UsdGeom.Imageable(p).ComputeVisibility(Usd.TimeCode(f)) != "invisible" for p in orbs
+        )
 
     counts = [alive(f) for f in (1, 60, 120, 180, 240)]
     assert counts == sorted(counts) and counts[0] < n / 4 and counts[-1] == n, counts

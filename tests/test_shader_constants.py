@@ -21,8 +21,11 @@ from stb_hydra.renderer.gl import (
 
 SHADERS = Path(str(shader_root()))
 STAGES = sorted(p.name for p in SHADERS.iterdir() if p.suffix in (".vert", ".frag", ".comp"))
-SOURCES = sorted(p.relative_to(SHADERS).as_posix() for p in SHADERS.rglob("*")
-                 if p.suffix in (".vert", ".frag", ".comp", ".glsl"))
+SOURCES = sorted(
+    p.relative_to(SHADERS).as_posix()
+    for p in SHADERS.rglob("*")
+    if p.suffix in (".vert", ".frag", ".comp", ".glsl")
+)
 
 
 def _code(text: str) -> str:
@@ -94,9 +97,17 @@ def test_codes_agree_with_their_python_owners():
 
 #: Every optional feature on: each #ifdef path that uses a constant gets compiled.
 ALL_FEATURES = {
-    "HAS_SUN": True, "HAS_SUN_SHADOW": True, "HAS_AMBIENT": True, "HAS_IES": True,
-    "HAS_CONES": True, "HAS_SHADOWS": True, "STOCHASTIC_PCF": True, "LOCAL_LIGHTS": True,
-    "STB_N": 4, "STB_PIXEL_TERMS": True, "CULL_GROUP_SIZE": 64,
+    "HAS_SUN": True,
+    "HAS_SUN_SHADOW": True,
+    "HAS_AMBIENT": True,
+    "HAS_IES": True,
+    "HAS_CONES": True,
+    "HAS_SHADOWS": True,
+    "STOCHASTIC_PCF": True,
+    "LOCAL_LIGHTS": True,
+    "STB_N": 4,
+    "STB_PIXEL_TERMS": True,
+    "CULL_GROUP_SIZE": 64,
 }
 _VERTEX_OF = {"gbuffer.frag": "gbuffer.vert", "depth_only.frag": "depth_only.vert"}
 

@@ -360,7 +360,6 @@ def test_atlas_stats_reported(gl_ctx):
         eng.release()
 
 
-
 def test_stochastic_pcf_softens_but_agrees_away_from_edges(gl_ctx):
     lpos = np.array([-1.0, 2.5, 0.3])
     stage = usda_stage(HEADER + BOX + light("L", lpos))

@@ -82,10 +82,25 @@ def read_csv(path):
 
 def test_cli_quick_grid(scene_file, tmp_path):
     out = tmp_path / "out"
-    rc = cli.main([
-        "tradeoff", str(scene_file), "--quick", "--width", "64", "--height", "36",
-        "--frames", "1", "--warmup", "0", "--temporal-frames", "2", "--out", str(out),
-    ])
+    rc = cli.main(
+        [
+            "tradeoff",
+            str(scene_file),
+            "--quick",
+            "--width",
+            "64",
+            "--height",
+            "36",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+            "--temporal-frames",
+            "2",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     rows = read_csv(out / "tradeoff.csv")
     by = {r["label"]: r for r in rows}
@@ -109,10 +124,26 @@ def test_cli_quick_grid(scene_file, tmp_path):
 
 def test_cli_sweep(tmp_path):
     out = tmp_path / "sweep"
-    rc = cli.main([
-        "tradeoff", "lights", "--sweep-lights", "3,8", "--sweep-methods", "tiled,reference,stb",
-        "--width", "48", "--height", "27", "--frames", "1", "--warmup", "0", "--out", str(out),
-    ])
+    rc = cli.main(
+        [
+            "tradeoff",
+            "lights",
+            "--sweep-lights",
+            "3,8",
+            "--sweep-methods",
+            "tiled,reference,stb",
+            "--width",
+            "48",
+            "--height",
+            "27",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     rows = read_csv(out / "sweep.csv")
     assert [(r["lights"], r["method"]) for r in rows] == [

@@ -91,8 +91,9 @@ def SphereLight "Ies"
 """
 
 
-def stage_file(tmp_path: Path, body: str, name: str = "s.usda", extra: str = "",
-               camera_attrs: str = "") -> Path:
+def stage_file(
+    tmp_path: Path, body: str, name: str = "s.usda", extra: str = "", camera_attrs: str = ""
+) -> Path:
     p = tmp_path / name
     p.write_text(HEADER.format(extra=extra) + CAMERA.format(attrs=camera_attrs) + body)
     return p
@@ -119,7 +120,7 @@ def one_error(code: int, err: str, needle: str) -> str:
 
 
 def warnings_of(err: str) -> list[str]:
-    return [ln[len("warning: "):] for ln in err.splitlines() if ln.startswith("warning: ")]
+    return [ln[len("warning: ") :] for ln in err.splitlines() if ln.startswith("warning: ")]
 
 
 # --- 1. warnings on stderr by default, one line each, deduplicated, counted; --quiet ---------
@@ -127,10 +128,15 @@ def warnings_of(err: str) -> list[str]:
 
 @pytest.mark.gl
 def test_scene_warnings_are_shown_once_each_with_a_count(tmp_path, capfd):
-    scene = stage_file(tmp_path, BOX + LAMP + BAD_LIGHTS, extra="    startTimeCode = 1\n",
-                       camera_attrs="    float exposure = 200\n")
-    code, _, err = stb(capfd, "render", scene, tmp_path / "f.####.png", "--width", 32,
-                       "--frames", "1:2")
+    scene = stage_file(
+        tmp_path,
+        BOX + LAMP + BAD_LIGHTS,
+        extra="    startTimeCode = 1\n",
+        camera_attrs="    float exposure = 200\n",
+    )
+    code, _, err = stb(
+        capfd, "render", scene, tmp_path / "f.####.png", "--width", 32, "--frames", "1:2"
+    )
     assert code == 0, err
     w = warnings_of(err)
     expect = {
@@ -205,13 +211,25 @@ def test_clean_text_and_causes():
 
     ns = "pxrInternal_v0_26_11__pxrReserved__"
     assert clean_text(f"{ns}::UsdStage::_ReportErrors") == "UsdStage::_ReportErrors"
-    raw = (f"/a/s.usda:4:1: parse error matching {ns}::Sdf_TextFileFormatParser::"
-           "TupleValueClose at '' in </A.x>")
+    raw = (
+        f"/a/s.usda:4:1: parse error matching {ns}::Sdf_TextFileFormatParser::"
+        "TupleValueClose at '' in </A.x>"
+    )
     assert clean_text(raw, stage_file="/a/s.usda") == (
-        "line 4, column 1: parse error at end of file (expected TupleValueClose)")
-    d = [Diagnostic("warning", clean_text(
-        f"Could not open asset @/lib/a/{n}.mtlx:SDF_FORMAT_ARGS:target=usd@ "
-        "(instantiating stage on stage @/lib/s.usda@ <0x55aa>)", "/lib"), "f") for n in "xyz"]
+        "line 4, column 1: parse error at end of file (expected TupleValueClose)"
+    )
+    d = [
+        Diagnostic(
+            "warning",
+            clean_text(
+                f"Could not open asset @/lib/a/{n}.mtlx:SDF_FORMAT_ARGS:target=usd@ "
+                "(instantiating stage on stage @/lib/s.usda@ <0x55aa>)",
+                "/lib",
+            ),
+            "f",
+        )
+        for n in "xyz"
+    ]
     assert d[0].text == "Could not open asset @a/x.mtlx@"
     seen: set[str] = set()
     assert summarize(d, seen) == ["usd: Could not open asset @a/x.mtlx@ (+2 more like this)"]
@@ -234,13 +252,16 @@ def scene(tmp_path: Path) -> Path:
         (["--width", "64", "--height", "100000"], "--height 100000 exceeds"),
         (["--width", "64", "--height", "0"], "--height must be a positive number of pixels"),
         (["--width", "0"], "--width must be a positive number of pixels"),
-        (["--width", "64", "--lighting", "stb", "-o", "N=abc"],
-         "stb option N: expected an integer, got 'abc'"),
+        (
+            ["--width", "64", "--lighting", "stb", "-o", "N=abc"],
+            "stb option N: expected an integer, got 'abc'",
+        ),
         (["--width", "64", "--stats", "missing_dir/s.json"], "missing_dir"),
     ],
 )
-def test_limits_exit_2_with_one_line_and_no_files(scene, tmp_path, capfd, monkeypatch, args,
-                                                  needle):
+def test_limits_exit_2_with_one_line_and_no_files(
+    scene, tmp_path, capfd, monkeypatch, args, needle
+):
     monkeypatch.chdir(tmp_path)
     code, _, err = stb(capfd, "render", scene, tmp_path / "x.png", *args)
     one_error(code, err, needle)
@@ -252,8 +273,9 @@ def test_stats_file_mode_and_values(scene, tmp_path, capfd):
     old = os.umask(0o022)
     try:
         stats = tmp_path / "s.json"
-        code, _, err = stb(capfd, "render", scene, tmp_path / "i.png", "--width", 32,
-                           "--stats", stats)
+        code, _, err = stb(
+            capfd, "render", scene, tmp_path / "i.png", "--width", 32, "--stats", stats
+        )
         assert code == 0, err
         img_mode = stat.S_IMODE((tmp_path / "i.png").stat().st_mode)
         assert stat.S_IMODE(stats.stat().st_mode) == img_mode == 0o644
@@ -262,8 +284,20 @@ def test_stats_file_mode_and_values(scene, tmp_path, capfd):
         assert fr["shadow_budget_texels"] is None  # unlimited (offline), not 2**62
         assert doc["settings"]["shadow_budget"] is None
         assert fr["frame"] == "default"  # a still of a stage without a time range
-        code, _, err = stb(capfd, "render", scene, tmp_path / "b.png", "--width", 32,
-                           "--stats", stats, "--shadow-budget", 200000, "--frames", 3)
+        code, _, err = stb(
+            capfd,
+            "render",
+            scene,
+            tmp_path / "b.png",
+            "--width",
+            32,
+            "--stats",
+            stats,
+            "--shadow-budget",
+            200000,
+            "--frames",
+            3,
+        )
         assert code == 0, err
         fr = json.loads(stats.read_text())["frames"][0]
         assert fr["shadow_budget_texels"] == 200000 and fr["frame"] == 3.0
@@ -282,8 +316,12 @@ def _run_on_pty(args: list[str]) -> str:
 
     master, slave = pty.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
-    proc = subprocess.Popen([sys.executable, "-m", "stb_hydra.apps.cli", *args],
-                            stdout=subprocess.DEVNULL, stderr=slave, stdin=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "stb_hydra.apps.cli", *args],
+        stdout=subprocess.DEVNULL,
+        stderr=slave,
+        stdin=subprocess.DEVNULL,
+    )
     os.close(slave)
     chunks = []
     while True:
@@ -306,8 +344,17 @@ def _run_on_pty(args: list[str]) -> str:
 
 @pytest.mark.gl
 def test_progress_bar_on_a_terminal_only(scene, tmp_path, capfd):
-    args = ["render", str(scene), str(tmp_path / "p.####.exr"), "--width", "32",
-            "--frames", "1:2", "--accumulate", "2"]
+    args = [
+        "render",
+        str(scene),
+        str(tmp_path / "p.####.exr"),
+        "--width",
+        "32",
+        "--frames",
+        "1:2",
+        "--accumulate",
+        "2",
+    ]
     tty = _run_on_pty(args)
     assert "stb render" in tty and "4/4" in tty and "sample" in tty, tty
     assert "frame 2/2" in tty and "shadow maps" in tty, tty
@@ -319,14 +366,17 @@ def test_progress_bar_on_a_terminal_only(scene, tmp_path, capfd):
 def test_skip_existing_says_what_it_skipped(scene, tmp_path, capfd):
     pat = tmp_path / "f.####.exr"
     assert stb(capfd, "render", scene, pat, "--width", 16, "--frames", "1:2")[0] == 0
-    code, _, err = stb(capfd, "render", scene, pat, "--width", 16, "--frames", "1:3",
-                       "--skip-existing")
+    code, _, err = stb(
+        capfd, "render", scene, pat, "--width", 16, "--frames", "1:3", "--skip-existing"
+    )
     assert code == 0
     line = [ln for ln in err.splitlines() if "skip" in ln]
-    assert line == ["stb render: --skip-existing skipped 2 of 3 frames "
-                    "(files exist: f.0001.exr, f.0002.exr)"]
-    code, _, err = stb(capfd, "render", scene, pat, "--width", 16, "--frames", "1:3",
-                       "--skip-existing", "--quiet")
+    assert line == [
+        "stb render: --skip-existing skipped 2 of 3 frames (files exist: f.0001.exr, f.0002.exr)"
+    ]
+    code, _, err = stb(
+        capfd, "render", scene, pat, "--width", 16, "--frames", "1:3", "--skip-existing", "--quiet"
+    )
     assert code == 0 and err == ""
 
 
@@ -345,13 +395,22 @@ def test_no_lights_and_nothing_in_view_warn_once(tmp_path, capfd):
     dark = stage_file(tmp_path, BOX, "dark.usda")
     code, _, err = stb(capfd, "render", dark, tmp_path / "d.png", "--width", 16)
     assert code == 0 and warnings_of(err) == [
-        "the stage has no lights: the image shows unlit (black) geometry; "
-        "add a light or --ambient"]
-    away = stage_file(tmp_path, LAMP + BOX.replace("double size = 2", "double size = 2\n"
-                      "    double3 xformOp:translate = (0, 0, 20)\n"
-                      '    uniform token[] xformOpOrder = ["xformOp:translate"]'), "away.usda")
-    code, _, err = stb(capfd, "render", away, tmp_path / "a.####.png", "--width", 16,
-                       "--frames", "1:2")
+        "the stage has no lights: the image shows unlit (black) geometry; add a light or --ambient"
+    ]
+    away = stage_file(
+        tmp_path,
+        LAMP
+        + BOX.replace(
+            "double size = 2",
+            "double size = 2\n"
+            "    double3 xformOp:translate = (0, 0, 20)\n"
+            '    uniform token[] xformOpOrder = ["xformOp:translate"]',
+        ),
+        "away.usda",
+    )
+    code, _, err = stb(
+        capfd, "render", away, tmp_path / "a.####.png", "--width", 16, "--frames", "1:2"
+    )
     assert code == 0
     assert warnings_of(err) == ["camera /Cam sees no geometry: the image is background only"]
 
@@ -362,8 +421,9 @@ def test_inspect_prints_default_time(tmp_path, capfd):
     assert code == 0 and "time=default" in out and "e+308" not in out
     code, out, _ = stb(capfd, "inspect", p, "--json")
     assert json.loads(out)["time"] == "default"
-    timed = stage_file(tmp_path, BOX + LAMP, "t.usda",
-                       extra="    startTimeCode = 5\n    endTimeCode = 9\n")
+    timed = stage_file(
+        tmp_path, BOX + LAMP, "t.usda", extra="    startTimeCode = 5\n    endTimeCode = 9\n"
+    )
     assert json.loads(stb(capfd, "inspect", timed, "--json")[1])["time"] == 5.0
 
 
@@ -373,16 +433,24 @@ def test_inspect_prints_default_time(tmp_path, capfd):
 def test_validate_library_root(tmp_path, capfd, monkeypatch):
     monkeypatch.chdir(REPO)
     report = tmp_path / "v.json"
-    code, _, err = stb(capfd, "validate", "usd_scenes/prefabs", "--jobs", "0", "--quiet",
-                       "--json", report)
+    code, _, err = stb(
+        capfd, "validate", "usd_scenes/prefabs", "--jobs", "0", "--quiet", "--json", report
+    )
     assert code == 1  # each PATH its own root: ../ies escapes it
     rules = [f["rule"] for a in json.loads(report.read_text())["assets"] for f in a["findings"]]
     assert rules.count("asset_path_unsafe") == 4
-    code, _, err = stb(capfd, "validate", "usd_scenes/prefabs", "--library-root", "usd_scenes",
-                       "--jobs", "0", "--quiet")
+    code, _, err = stb(
+        capfd,
+        "validate",
+        "usd_scenes/prefabs",
+        "--library-root",
+        "usd_scenes",
+        "--jobs",
+        "0",
+        "--quiet",
+    )
     assert code == 0, err
-    code, _, err = stb(capfd, "validate", "usd_scenes/prefabs", "--library-root",
-                       "usd_scenes/ies")
+    code, _, err = stb(capfd, "validate", "usd_scenes/prefabs", "--library-root", "usd_scenes/ies")
     one_error(code, err, "is outside --library-root")
 
 
@@ -394,8 +462,11 @@ def test_debug_view_pngs_have_a_labelled_scale(tmp_path, name):
     from stb_hydra.io.debug_views import LEGEND_ROWS, _legend_spec, debug_aov_image, write_debug_aov
 
     rng = np.random.default_rng(1)
-    px = (rng.random((40, 160)) * 300).astype(np.float32) if name == "lightcount" else \
-        rng.random((40, 160, 3)).astype(np.float32)
+    px = (
+        (rng.random((40, 160)) * 300).astype(np.float32)
+        if name == "lightcount"
+        else rng.random((40, 160, 3)).astype(np.float32)
+    )
     png_path = write_debug_aov(tmp_path / "x.png", name, px)[0]
     png, meta = read_image(png_path, pixel_type="native")
     assert png.shape[:2] == (40 + LEGEND_ROWS, 160) and meta["stb:legendRows"] == LEGEND_ROWS
@@ -434,8 +505,11 @@ def readme_commands() -> list[str]:
     text = (REPO / "README.md").read_text()
     lines = []
     for block in re.findall(r"```sh\n(.*?)```", text, re.S):
-        lines += [ln.split("  # ")[0].strip() for ln in block.splitlines()
-                  if ln.strip().startswith("stb ")]
+        lines += [
+            ln.split("  # ")[0].strip()
+            for ln in block.splitlines()
+            if ln.strip().startswith("stb ")
+        ]
     return lines
 
 
@@ -470,8 +544,13 @@ def test_readme_commands_run(tmp_path):
     out.mkdir()
     for cmd in cmds:
         args = shrink(cmd, out)
-        r = subprocess.run([sys.executable, "-m", "stb_hydra.apps.cli", *args], cwd=REPO,
-                           capture_output=True, text=True, timeout=300)
+        r = subprocess.run(
+            [sys.executable, "-m", "stb_hydra.apps.cli", *args],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert r.returncode == 0, (cmd, args, r.stderr[-2000:])
         assert "Traceback" not in r.stderr, (cmd, r.stderr[-2000:])
     assert (out / "court.png").exists() and (out / "frame.0002.exr").exists()

@@ -91,15 +91,17 @@ def test_unsafe_asset_is_not_opened(library, selection):
     lib, _ = library
     outside = str((lib.parent / "outside.usda").resolve())
     assert Sdf.Layer.Find(outside) is None
-    rep = validate_in_process(str(lib / "prefabs" / "unsafe_escape.usda"), str(lib), selection,
-                              False)
+    rep = validate_in_process(
+        str(lib / "prefabs" / "unsafe_escape.usda"), str(lib), selection, False
+    )
     assert not rep.opened
     assert [f.rule for f in rep.findings] == ["asset_path_unsafe"]
     assert "escapes the library root" in rep.findings[0].message
     assert Sdf.Layer.Find(outside) is None, "a layer outside the library root was opened"
     # The same file is fine when the library root includes the outside file.
-    rep2 = validate_in_process(str(lib / "prefabs" / "unsafe_escape.usda"), str(lib.parent),
-                               selection, False)
+    rep2 = validate_in_process(
+        str(lib / "prefabs" / "unsafe_escape.usda"), str(lib.parent), selection, False
+    )
     assert rep2.opened and ("intensity_invalid", "/Prefab/Lights/L1") in _stb(rep2)
 
 
@@ -108,8 +110,9 @@ def test_rule_selection(library):
     path = str(lib / "prefabs" / "stb_overlap.usda")
     only = validate_in_process(path, str(lib), Selection.parse(["stb_overlap"]), False)
     assert {f.rule for f in only.findings} == {"stb_overlap"}
-    usd = validate_in_process(str(lib / "prefabs" / "ies_missing.usda"), str(lib),
-                              Selection.parse(["usd"]), False)
+    usd = validate_in_process(
+        str(lib / "prefabs" / "ies_missing.usda"), str(lib), Selection.parse(["usd"]), False
+    )
     assert usd.findings and all(":" in f.rule for f in usd.findings)
     assert Selection.parse(["LightValues"]).validators == [f"{PLUGIN_NAME}:LightValues"]
 
@@ -119,19 +122,20 @@ def test_rule_selection(library):
 
 def _validate_real(testdata, rel: str, root: str | None = None):
     path = testdata / "usd" / rel
-    return validate_in_process(str(path), str(testdata / "usd" / (root or "")), Selection.parse(
-        None), False)
+    return validate_in_process(
+        str(path), str(testdata / "usd" / (root or "")), Selection.parse(None), False
+    )
 
 
 def test_real_missing_time_sampled_ies(testdata):
-    rep = _validate_real(testdata, "arnold-usd/test_2477.1/data/test.usda",
-                         "arnold-usd/test_2477.1")
+    rep = _validate_real(
+        testdata, "arnold-usd/test_2477.1/data/test.usda", "arnold-usd/test_2477.1"
+    )
     f = [x for x in rep.findings if x.rule == "ies_missing"]
     assert [x.prim for x in f] == ["/lights/sphere_light"]
     # Found through the time samples: the default value is @@ and frame 59 resolves.
     assert "bega_omni002_4777lm.ies" in f[0].message and "times 46-58, 60-63" in f[0].message
-    assert any(r.startswith("usdUtilsValidators:MissingReferenceValidator") for r in
-               _builtin(rep))
+    assert any(r.startswith("usdUtilsValidators:MissingReferenceValidator") for r in _builtin(rep))
 
 
 def test_real_legacy_attribute_names(testdata):
@@ -139,15 +143,14 @@ def test_real_legacy_attribute_names(testdata):
     rep = _validate_real(testdata, rel, "usd-wg")
     legacy = {x.prim: x.message for x in rep.findings if x.rule == "legacy_attribute"}
     base = "/NormalsTextureBiasAndScale/Lights/"
-    assert set(legacy) == {base + n for n in ("LightFromAbove", "LightFromLeft",
-                                              "LightFromRight", "AngledLight")}
-    assert all("'shaping:cone:angle' -> 'inputs:shaping:cone:angle'" in m
-               for m in legacy.values())
+    assert set(legacy) == {
+        base + n for n in ("LightFromAbove", "LightFromLeft", "LightFromRight", "AngledLight")
+    }
+    assert all("'shaping:cone:angle' -> 'inputs:shaping:cone:angle'" in m for m in legacy.values())
 
 
 def test_real_unresolvable_mtlx_reference(testdata):
-    rel = ("openusd/usdImaging/usdImagingGL/testenv/testUsdImagingGLMaterialXBasic/"
-           "mxLights.usda")
+    rel = "openusd/usdImaging/usdImagingGL/testenv/testUsdImagingGLMaterialXBasic/mxLights.usda"
     rep = _validate_real(testdata, rel, "openusd")
     comp = [x for x in rep.findings if x.rule.startswith("usdValidation:CompositionErrorTest")]
     assert comp and comp[0].prim == "/Materials/MaterialX" and ".mtlx" in comp[0].message
@@ -162,7 +165,9 @@ def test_real_lights_inside_instances(testdata):
     for rep in (plain, inst):
         assert {p for r, p in _stb(rep) if r == "legacy_attribute"} == torches
         assert {p for r, p in _stb(rep) if r == "units_mismatch"} == {
-            "/World/Geo/torch_1", "/World/Geo/torch_2"}  # torch.usda is Z-up
+            "/World/Geo/torch_1",
+            "/World/Geo/torch_2",
+        }  # torch.usda is Z-up
     stage = Usd.Stage.Open(str(testdata / "usd" / base / "root_with_instances.usda"))
     assert all(stage.GetPrimAtPath(p).IsInstanceProxy() for p in torches)
     assert _stb(plain) == _stb(inst)
@@ -189,9 +194,18 @@ def test_real_scenes_never_crash(testdata):
 def test_validators_registered_under_keyword_stb():
     reg = UsdValidation.ValidationRegistry()
     names = sorted(m.name for m in reg.GetValidatorMetadataForKeyword("stb"))
-    assert names == sorted(f"{PLUGIN_NAME}:{v}" for v in
-                           ("LightValues", "IesProfile", "Photometry", "ShadowBudget",
-                            "StbNoiseRisk", "StageUnits", "AssetPaths"))
+    assert names == sorted(
+        f"{PLUGIN_NAME}:{v}"
+        for v in (
+            "LightValues",
+            "IesProfile",
+            "Photometry",
+            "ShadowBudget",
+            "StbNoiseRisk",
+            "StageUnits",
+            "AssetPaths",
+        )
+    )
     md = reg.GetValidatorMetadata(f"{PLUGIN_NAME}:LightValues")
     assert md.doc and list(md.GetSchemaTypes()) == ["UsdLuxLightAPI"]
     assert all(reg.HasValidator(n) for n in names)
@@ -202,13 +216,13 @@ def test_plain_validation_context_runs_our_validators(library, monkeypatch):
     monkeypatch.setenv(LIBRARY_ROOT_ENV, str(lib))  # default: the root layer's directory
     stage = Usd.Stage.Open(str(lib / "scenes" / "instanced.usda"))
     errors = UsdValidation.ValidationContext(["stb"], True).Validate(stage)
-    got = {(e.GetName(), str(e.GetSites()[0].GetPrim().GetPath()), e.GetType())
-           for e in errors}
+    got = {(e.GetName(), str(e.GetSites()[0].GetPrim().GetPath()), e.GetType()) for e in errors}
     err = UsdValidation.ValidationErrorType.Error
-    assert got == {("intensity_invalid", "/Scene/TorchA/Light", err),
-                   ("intensity_invalid", "/Scene/TorchB/Light", err)}
-    assert all(e.GetValidator().GetMetadata().name == f"{PLUGIN_NAME}:LightValues"
-               for e in errors)
+    assert got == {
+        ("intensity_invalid", "/Scene/TorchA/Light", err),
+        ("intensity_invalid", "/Scene/TorchB/Light", err),
+    }
+    assert all(e.GetValidator().GetMetadata().name == f"{PLUGIN_NAME}:LightValues" for e in errors)
 
 
 def test_plugin_loads_in_a_fresh_usd_process(library, repo):
@@ -227,8 +241,13 @@ def test_plugin_loads_in_a_fresh_usd_process(library, repo):
         "print(len(names), sorted({e.GetName() for e in errs}), 'stb_hydra' in sys.modules)\n"
     )
     env = dict(os.environ, PXR_PLUGINPATH_NAME=str(plugdir), PYTHONPATH=str(repo))
-    out = subprocess.run([sys.executable, "-c", code, str(lib / "prefabs" / "exposure.usda")],
-                         env=env, capture_output=True, text=True, timeout=120)
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(lib / "prefabs" / "exposure.usda")],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "7 ['exposure_invalid'] True"
 
@@ -271,8 +290,13 @@ def _json_run(tmp_path: Path, name: str, *argv: str) -> dict:
 
 
 def _findings_by_asset(doc: dict) -> dict:
-    return {a["path"]: (a["status"], sorted((f["rule"], f["prim"], f["message"])
-                                            for f in a["findings"])) for a in doc["assets"]}
+    return {
+        a["path"]: (
+            a["status"],
+            sorted((f["rule"], f["prim"], f["message"]) for f in a["findings"]),
+        )
+        for a in doc["assets"]
+    }
 
 
 def test_cli_json_schema_and_jobs_parity(tmp_path, library):
@@ -280,8 +304,17 @@ def test_cli_json_schema_and_jobs_parity(tmp_path, library):
     one = _json_run(tmp_path, "one", str(lib), "--jobs", "1")
     two = _json_run(tmp_path, "two", str(lib), "--jobs", "2")
     assert one["_exit"] == two["_exit"] == 1
-    assert set(one) == {"schema", "tool", "stb_hydra", "usd", "fail_on", "rules", "summary",
-                        "assets", "_exit"}
+    assert set(one) == {
+        "schema",
+        "tool",
+        "stb_hydra",
+        "usd",
+        "fail_on",
+        "rules",
+        "summary",
+        "assets",
+        "_exit",
+    }
     assert one["schema"] == 1 and one["fail_on"] == "error"
     assert len(one["assets"]) == len(expected)
     for a in one["assets"]:

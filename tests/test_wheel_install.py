@@ -91,15 +91,30 @@ def _venv_with_wheel(tmp: Path, wheel: Path) -> Path:
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
     py = venv / "bin" / "python"
     r = subprocess.run(
-        [sys.executable, "-m", "pip", "--python", str(py), "install", "-q", "--no-deps",
-         "--no-index", "--no-compile", str(wheel)],
-        capture_output=True, text=True, timeout=300,
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            str(py),
+            "install",
+            "-q",
+            "--no-deps",
+            "--no-index",
+            "--no-compile",
+            str(wheel),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert r.returncode == 0, r.stdout + r.stderr
     # Only now (so pip saw an empty environment) the dependencies of this environment.
     site = subprocess.run(
         [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-        capture_output=True, text=True, check=True,
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout.strip()
     Path(site, "_stb_test_deps.pth").write_text("".join(f"{p}\n" for p in _dependency_dirs()))
     return venv
@@ -141,8 +156,13 @@ def _inside(path: str | Path, root: Path) -> bool:
 def test_wheel_installs_and_renders_outside_the_checkout(tmp_path, gl_ctx):
     wheel = _build_wheel(tmp_path)
     names = set(zipfile.ZipFile(wheel).namelist())
-    for f in ("shaders/__init__.py", "shaders/stb_bigtile.frag", "shaders/common/lights.glsl",
-              "data/quad_patterns.json", "scene/schema/plugInfo.json"):
+    for f in (
+        "shaders/__init__.py",
+        "shaders/stb_bigtile.frag",
+        "shaders/common/lights.glsl",
+        "data/quad_patterns.json",
+        "scene/schema/plugInfo.json",
+    ):
         assert f"stb_hydra/{f}" in names, f
 
     venv = _venv_with_wheel(tmp_path, wheel)
@@ -152,7 +172,11 @@ def test_wheel_installs_and_renders_outside_the_checkout(tmp_path, gl_ctx):
 
     r = subprocess.run(
         [str(venv / "bin" / "python"), "-c", _CHILD, str(SCENE)],
-        cwd=run_dir, env=env, capture_output=True, text=True, timeout=300,
+        cwd=run_dir,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert r.returncode == 0, r.stderr
     got = json.loads(r.stdout.strip().splitlines()[-1])
@@ -170,9 +194,23 @@ def test_wheel_installs_and_renders_outside_the_checkout(tmp_path, gl_ctx):
     # The console script of the new environment.
     out = run_dir / "default.png"
     r = subprocess.run(
-        [str(venv / "bin" / "stb"), "render", str(SCENE), str(out),
-         "--width", "64", "--height", "36", "--lighting", "stb"],
-        cwd=run_dir, env=env, capture_output=True, text=True, timeout=300,
+        [
+            str(venv / "bin" / "stb"),
+            "render",
+            str(SCENE),
+            str(out),
+            "--width",
+            "64",
+            "--height",
+            "36",
+            "--lighting",
+            "stb",
+        ],
+        cwd=run_dir,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
     )
     assert r.returncode == 0, r.stdout + r.stderr
     from stb_hydra.io.images import read_image

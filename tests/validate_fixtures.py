@@ -34,13 +34,15 @@ def _header(dp: str, mpu: float = 1.0, up: str = "Y") -> str:
 
 
 def _light(name: str, intensity: str, extra: str = "", indent: str = "    ") -> str:
-    return (f'{indent}def SphereLight "{name}"\n{indent}{{\n'
-            f"{indent}    float inputs:intensity = {intensity}\n"
-            f"{indent}    float inputs:radius = 0.05\n"
-            f"{indent}    bool inputs:shadow:enable = 0\n"
-            f"{indent}    float stb:range = 3\n{extra}"
-            f"{indent}    double3 xformOp:translate = (0, 1.5, 0)\n"
-            f'{indent}    uniform token[] xformOpOrder = ["xformOp:translate"]\n{indent}}}\n')
+    return (
+        f'{indent}def SphereLight "{name}"\n{indent}{{\n'
+        f"{indent}    float inputs:intensity = {intensity}\n"
+        f"{indent}    float inputs:radius = 0.05\n"
+        f"{indent}    bool inputs:shadow:enable = 0\n"
+        f"{indent}    float stb:range = 3\n{extra}"
+        f"{indent}    double3 xformOp:translate = (0, 1.5, 0)\n"
+        f'{indent}    uniform token[] xformOpOrder = ["xformOp:translate"]\n{indent}}}\n'
+    )
 
 
 def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
@@ -54,16 +56,23 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
 
     # A centimetre part (geometry only) referenced into a metre scene, once without and
     # once with a compensating scale.
-    _w(lib / "parts" / "cm_geo.usda", _header("Geo", 0.01) + '''def Xform "Geo"
+    _w(
+        lib / "parts" / "cm_geo.usda",
+        _header("Geo", 0.01)
+        + """def Xform "Geo"
 {
     def Cube "Block"
     {
         double size = 50
     }
 }
-''')
+""",
+    )
     exp["parts/cm_geo.usda"] = Expected()
-    _w(lib / "scenes" / "units_mismatch.usda", _header("Scene") + '''def Xform "Scene"
+    _w(
+        lib / "scenes" / "units_mismatch.usda",
+        _header("Scene")
+        + """def Xform "Scene"
 {
     def "Part" (
         references = @../parts/cm_geo.usda@
@@ -79,15 +88,21 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
         uniform token[] xformOpOrder = ["xformOp:scale"]
     }
 }
-''')
+""",
+    )
     exp["scenes/units_mismatch.usda"] = Expected({("units_mismatch", "/Scene/Part")})
 
     # A bad torch referenced twice as a native instance: the light inside the
     # instance prototype is found through both instance proxies.
-    _w(lib / "parts" / "torch_bad.usda", _header("Torch") + 'def Xform "Torch"\n{\n'
-       + _light("Light", "-1") + "}\n")
+    _w(
+        lib / "parts" / "torch_bad.usda",
+        _header("Torch") + 'def Xform "Torch"\n{\n' + _light("Light", "-1") + "}\n",
+    )
     exp["parts/torch_bad.usda"] = Expected({("intensity_invalid", "/Torch/Light")})
-    _w(lib / "scenes" / "instanced.usda", _header("Scene") + '''def Xform "Scene"
+    _w(
+        lib / "scenes" / "instanced.usda",
+        _header("Scene")
+        + """def Xform "Scene"
 {
     def "TorchA" (
         instanceable = true
@@ -105,35 +120,52 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
         uniform token[] xformOpOrder = ["xformOp:translate"]
     }
 }
-''')
-    exp["scenes/instanced.usda"] = Expected({
-        ("intensity_invalid", "/Scene/TorchA/Light"),
-        ("intensity_invalid", "/Scene/TorchB/Light"),
-    })
+""",
+    )
+    exp["scenes/instanced.usda"] = Expected(
+        {
+            ("intensity_invalid", "/Scene/TorchA/Light"),
+            ("intensity_invalid", "/Scene/TorchB/Light"),
+        }
+    )
 
     # PointInstancer: 3 instances of a dim lamp (0.1 lm) and of a lamp with a bad
     # exposure; reported once, on the prototype light prims.
-    protos = ('        def Xform "Protos"\n        {\n'
-              '            def Xform "Dim"\n            {\n'
-              + _light("Bulb", "1", indent="                ")
-              + '            }\n            def Xform "Hot"\n            {\n'
-              + _light("Bulb", "8000", "                    float inputs:exposure = 40\n",
-                       indent="                ")
-              + "            }\n        }\n")
-    _w(lib / "scenes" / "point_instancer.usda", _header("Prefab") + '''def Xform "Prefab"
+    protos = (
+        '        def Xform "Protos"\n        {\n'
+        '            def Xform "Dim"\n            {\n'
+        + _light("Bulb", "1", indent="                ")
+        + '            }\n            def Xform "Hot"\n            {\n'
+        + _light(
+            "Bulb",
+            "8000",
+            "                    float inputs:exposure = 40\n",
+            indent="                ",
+        )
+        + "            }\n        }\n"
+    )
+    _w(
+        lib / "scenes" / "point_instancer.usda",
+        _header("Prefab")
+        + """def Xform "Prefab"
 {
     def PointInstancer "Lamps"
     {
         rel prototypes = [</Prefab/Lamps/Protos/Dim>, </Prefab/Lamps/Protos/Hot>]
         int[] protoIndices = [0, 0, 0, 1, 1, 1]
         point3f[] positions = [(0, 0, 0), (2, 0, 0), (4, 0, 0), (0, 0, 2), (2, 0, 2), (4, 0, 2)]
-''' + protos + "    }\n}\n")
-    exp["scenes/point_instancer.usda"] = Expected({
-        ("flux_light", "/Prefab/Lamps/Protos/Dim/Bulb"),
-        ("exposure_invalid", "/Prefab/Lamps/Protos/Hot/Bulb"),
-    })
+"""
+        + protos
+        + "    }\n}\n",
+    )
+    exp["scenes/point_instancer.usda"] = Expected(
+        {
+            ("flux_light", "/Prefab/Lamps/Protos/Dim/Bulb"),
+            ("exposure_invalid", "/Prefab/Lamps/Protos/Hot/Bulb"),
+        }
+    )
 
     # Not USD at all, and a layer the runner must survive.
-    _w(lib / "broken" / "garbage.usda", "#usda 1.0\ndef Xform \"A\" {\n  this is not usda\n")
+    _w(lib / "broken" / "garbage.usda", '#usda 1.0\ndef Xform "A" {\n  this is not usda\n')
     exp["broken/garbage.usda"] = Expected({("unreadable", "/")}, opened=False)
     return exp

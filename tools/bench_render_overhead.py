@@ -46,7 +46,10 @@ def _engine(stage, method: str, size: tuple[int, int]):
     return Engine(
         stage,
         RenderSettings(
-            width=size[0], height=size[1], lighting=method, profile=True,
+            width=size[0],
+            height=size[1],
+            lighting=method,
+            profile=True,
             shadow_budget=limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,  # real time
         ),
     )
@@ -117,26 +120,43 @@ def task_times(args) -> list[dict]:
             finally:
                 eng.release()
             s = m.summary()
-            out.append({"method": method, "lights": n, "fov_lights": m.stats.get("fov_lights"),
-                        "size": args.size, "frame_ms": s["frame_ms"], "cpu_ms": s["cpu_ms"],
-                        "passes": s["passes"], "load_avg": load})
+            out.append(
+                {
+                    "method": method,
+                    "lights": n,
+                    "fov_lights": m.stats.get("fov_lights"),
+                    "size": args.size,
+                    "frame_ms": s["frame_ms"],
+                    "cpu_ms": s["cpu_ms"],
+                    "passes": s["passes"],
+                    "load_avg": load,
+                }
+            )
     return out
 
 
 def print_overhead(r: dict) -> None:
     up = "n/a (inside cull)" if r["upload_ms"] is None else f"{r['upload_ms']:.3f}"
     full = r["cull_full_upload_ms"]
-    print(f"CPU overhead, {r['lights']} lights ({r['fov_lights']} in view), unchanged scene, "
-          f"{r['method']} @ {r['size']} (medians, ms):")
-    print(f"  steady ({r['frames'] - r['light_uploads']} of {r['frames']} frames, no light "
-          f"upload): sync {r['sync_ms']:.3f}  commit {r['commit_ms']:.3f}  prepare "
-          f"{r['prepare_ms']:.3f}  (cull {r['cull_ms']:.3f}, upload check {up})")
-    print(f"  cull + upload: steady {r['cull_upload_ms']:.3f}, frames that upload light "
-          f"records ({r['light_uploads']}): " + ("-" if full is None else f"{full:.3f}")
-          + f" (target <= {CULL_UPLOAD_TARGET_MS:g}: {'ok' if r['target_met'] else 'MISSED'})")
+    print(
+        f"CPU overhead, {r['lights']} lights ({r['fov_lights']} in view), unchanged scene, "
+        f"{r['method']} @ {r['size']} (medians, ms):"
+    )
+    print(
+        f"  steady ({r['frames'] - r['light_uploads']} of {r['frames']} frames, no light "
+        f"upload): sync {r['sync_ms']:.3f}  commit {r['commit_ms']:.3f}  prepare "
+        f"{r['prepare_ms']:.3f}  (cull {r['cull_ms']:.3f}, upload check {up})"
+    )
+    print(
+        f"  cull + upload: steady {r['cull_upload_ms']:.3f}, frames that upload light "
+        f"records ({r['light_uploads']}): "
+        + ("-" if full is None else f"{full:.3f}")
+        + f" (target <= {CULL_UPLOAD_TARGET_MS:g}: {'ok' if r['target_met'] else 'MISSED'})"
+    )
     print(f"  whole CPU part of the frame {r['cpu_frame_ms']:.3f} ms; load {r['load_avg']}")
-    subs = sorted(((k, v) for k, v in r["timings"].items() if k.startswith("prepare.")),
-                  key=lambda kv: -kv[1])[:4]
+    subs = sorted(
+        ((k, v) for k, v in r["timings"].items() if k.startswith("prepare.")), key=lambda kv: -kv[1]
+    )[:4]
     print("  largest prepare steps: " + ", ".join(f"{k} {v:.3f}" for k, v in subs))
 
 

@@ -33,8 +33,12 @@ import tempfile
 import time
 from pathlib import Path
 
-TARGETS_10K_MS = {"open_first_sync": 3000.0, "edit_intensity": 5.0, "edit_move": 5.0,
-                  "set_time": 5.0}
+TARGETS_10K_MS = {
+    "open_first_sync": 3000.0,
+    "edit_intensity": 5.0,
+    "edit_move": 5.0,
+    "set_time": 5.0,
+}
 
 
 def _ms(t0: float) -> float:
@@ -64,8 +68,13 @@ def first_sync(path: Path) -> tuple[dict[str, float], object, object, object]:
     ri = RenderIndex(si, RenderDelegate())
     n = ri.sync_all()
     t_sync = _ms(t0)
-    times = {"open": t_open, "index": t_index, "sync": t_sync,
-             "open_first_sync": t_open + t_index + t_sync, "synced_prims": n}
+    times = {
+        "open": t_open,
+        "index": t_index,
+        "sync": t_sync,
+        "open_first_sync": t_open + t_index + t_sync,
+        "synced_prims": n,
+    }
     return times, stage, si, ri
 
 
@@ -146,25 +155,47 @@ def _verdict(rec: dict) -> dict[str, bool]:
 
 
 def print_table(records: list[dict]) -> None:
-    cols = [("lights", "{:>8}"), ("open", "{:>9.1f}"), ("index", "{:>9.1f}"),
-            ("sync", "{:>9.1f}"), ("open_first_sync", "{:>11.1f}"),
-            ("edit_intensity", "{:>9.3f}"), ("edit_move", "{:>9.3f}"),
-            ("set_time", "{:>9.3f}")]
-    heads = ["lights", "open ms", "index ms", "sync ms", "open+sync", "edit I ms",
-             "move ms", "set_time"]
+    cols = [
+        ("lights", "{:>8}"),
+        ("open", "{:>9.1f}"),
+        ("index", "{:>9.1f}"),
+        ("sync", "{:>9.1f}"),
+        ("open_first_sync", "{:>11.1f}"),
+        ("edit_intensity", "{:>9.3f}"),
+        ("edit_move", "{:>9.3f}"),
+        ("set_time", "{:>9.3f}"),
+    ]
+    heads = [
+        "lights",
+        "open ms",
+        "index ms",
+        "sync ms",
+        "open+sync",
+        "edit I ms",
+        "move ms",
+        "set_time",
+    ]
     print("  ".join(f"{h:>{9 if h != 'lights' else 8}}" for h in heads))
     for r in records:
         print("  ".join(fmt.format(r[k]) for k, fmt in cols))
         v = _verdict(r)
         if v:
-            print("  targets (10k): " + ", ".join(
-                f"{k} <= {TARGETS_10K_MS[k]:g} ms: {'ok' if ok else 'MISSED'}"
-                for k, ok in v.items()))
-    print("(edits: median of Set + apply_pending_updates + sync_all; sync alone: "
-          + ", ".join(f"{r['edit_intensity_sync']:.3f}/{r['edit_move_sync']:.3f} ms"
-                      for r in records) + ")")
-    print("load average (1 min) before/after: "
-          + "; ".join(f"{r['lights']}: {r['load_avg'][0]}/{r['load_avg'][1]}" for r in records))
+            print(
+                "  targets (10k): "
+                + ", ".join(
+                    f"{k} <= {TARGETS_10K_MS[k]:g} ms: {'ok' if ok else 'MISSED'}"
+                    for k, ok in v.items()
+                )
+            )
+    print(
+        "(edits: median of Set + apply_pending_updates + sync_all; sync alone: "
+        + ", ".join(f"{r['edit_intensity_sync']:.3f}/{r['edit_move_sync']:.3f} ms" for r in records)
+        + ")"
+    )
+    print(
+        "load average (1 min) before/after: "
+        + "; ".join(f"{r['lights']}: {r['load_avg'][0]}/{r['load_avg'][1]}" for r in records)
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

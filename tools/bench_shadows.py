@@ -39,7 +39,10 @@ def _engine(stage, width, height):
     eng = Engine(
         stage,
         RenderSettings(
-            width=width, height=height, lighting=METHOD, profile=True,
+            width=width,
+            height=height,
+            lighting=METHOD,
+            profile=True,
             shadow_budget=limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,  # real time
         ),
     )

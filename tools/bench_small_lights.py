@@ -54,7 +54,11 @@ def main(argv=None) -> int:
         eng = Engine(
             stage,
             RenderSettings(
-                width=w, height=h, lighting=method, profile=True, method_options=dict(opts),
+                width=w,
+                height=h,
+                lighting=method,
+                profile=True,
+                method_options=dict(opts),
                 shadow_budget=1 << 40,
             ),
         )

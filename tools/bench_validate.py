@@ -62,8 +62,18 @@ def generate(lib: Path, n: int, seed: int, clean_share: float = 0.6) -> dict[str
 
 def run_once(lib: Path, jobs: int) -> tuple[float, int, dict, tuple[float, float]]:
     report = lib / "report.json"
-    cmd = [sys.executable, "-m", "stb_hydra.apps.cli", "validate", str(lib), "--jobs",
-           str(jobs), "--json", str(report), "--quiet"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "stb_hydra.apps.cli",
+        "validate",
+        str(lib),
+        "--jobs",
+        str(jobs),
+        "--json",
+        str(report),
+        "--quiet",
+    ]
     load0 = os.getloadavg()[0]
     t = time.perf_counter()
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
@@ -104,22 +114,30 @@ def main(argv: list[str] | None = None) -> int:
         expected = generate(lib, args.n, args.seed)
         gen_s = time.perf_counter() - t
         planted = sum(1 for e in expected.values() if e)
-        print(f"generated {args.n} prefabs ({planted} with a planted problem, "
-              f"{args.n - planted} clean) in {gen_s:.1f} s under {lib}")
-        print(f"cpus: {os.cpu_count()}; command: stb validate {lib} --jobs {args.jobs} "
-              "--json report.json --quiet")
+        print(
+            f"generated {args.n} prefabs ({planted} with a planted problem, "
+            f"{args.n - planted} clean) in {gen_s:.1f} s under {lib}"
+        )
+        print(
+            f"cpus: {os.cpu_count()}; command: stb validate {lib} --jobs {args.jobs} "
+            "--json report.json --quiet"
+        )
         doc = None
         for r in range(args.repeat):
             wall, code, doc, (l0, l1) = run_once(lib, args.jobs)
-            print(f"run {r + 1}: {wall:.1f} s wall ({wall / args.n * 1000:.1f} ms/asset), "
-                  f"exit {code}, load average (1 min) {l0:.2f} before, {l1:.2f} after")
+            print(
+                f"run {r + 1}: {wall:.1f} s wall ({wall / args.n * 1000:.1f} ms/asset), "
+                f"exit {code}, load average (1 min) {l0:.2f} before, {l1:.2f} after"
+            )
         assert doc is not None
         bad = check(doc, expected)
         rules = Counter(f["rule"] for a in doc["assets"] for f in a["findings"])
         status = Counter(a["status"] for a in doc["assets"])
         per_asset = sorted(a["timings"].get("total", 0.0) for a in doc["assets"])
-        print(f"status: {dict(status)}; per-asset in-worker time median "
-              f"{per_asset[len(per_asset) // 2] * 1000:.1f} ms, max {per_asset[-1] * 1000:.0f} ms")
+        print(
+            f"status: {dict(status)}; per-asset in-worker time median "
+            f"{per_asset[len(per_asset) // 2] * 1000:.1f} ms, max {per_asset[-1] * 1000:.0f} ms"
+        )
         print("findings per rule: " + ", ".join(f"{k} {v}" for k, v in rules.most_common()))
         if bad:
             print(f"MISMATCH on {len(bad)} prefabs:\n  " + "\n  ".join(bad[:20]))

@@ -89,8 +89,11 @@ class LightDesign:
 
     def doc(self) -> str:
         s = ", ".join(f"{v:g}" for v in self.size)
-        what = {"isotropic": "4*pi*I", "hemi-ies": "2*pi*I (normalised hemispherical IES)",
-                "one-sided": "pi*I (one-sided Lambertian)"}[self.emission]
+        what = {
+            "isotropic": "4*pi*I",
+            "hemi-ies": "2*pi*I (normalised hemispherical IES)",
+            "one-sided": "pi*I (one-sided Lambertian)",
+        }[self.emission]
         col = ""
         if self.color != (1.0, 1.0, 1.0):
             col = f"; colour luminance {luminance(self.color):.3f} -> {self.colored_lumens:.0f} lm"
@@ -112,13 +115,23 @@ DESIGNS: dict[str, LightDesign] = {
         LightDesign("ceiling_fixture", "SphereLight", 33000.0, (0.035,), "hemi-ies", kelvin=4000),
         # 1.2 m x 4 cm magenta neon tube, one-sided rect, no shadows.
         LightDesign(
-            "neon_strip", "RectLight", 1500.0, (1.2, 0.04), "one-sided",
-            color=(1.0, 0.08, 0.75), shadows="off",
+            "neon_strip",
+            "RectLight",
+            1500.0,
+            (1.2, 0.04),
+            "one-sided",
+            color=(1.0, 0.08, 0.75),
+            shadows="off",
         ),
         # ~400 lm (white-equivalent) pink orb, dynamic shadows.
         LightDesign(
-            "enemy_orb", "SphereLight", 1000.0, (0.1,), "isotropic",
-            color=(1.0, 0.35, 0.65), shadows="dynamic",
+            "enemy_orb",
+            "SphereLight",
+            1000.0,
+            (0.1,),
+            "isotropic",
+            color=(1.0, 0.35, 0.65),
+            shadows="dynamic",
         ),
         # 600 lm in-ground uplight, 3000 K, 60 deg beam up.
         LightDesign("ground_uplight", "SphereLight", 34000.0, (0.03,), "hemi-ies", kelvin=3000),
@@ -216,23 +229,41 @@ def street_lamp() -> str:
             "Post-top roadway lantern, 5 m. The head hangs off the pole towards +X:\n"
             "+X is the IES 'street side' (H = 0), so rotate the instance about Y to aim it."
         )
-        _looks(w, root, {
-            "PaintedMetal": dict(diffuse=(0.07, 0.09, 0.08), roughness=0.45, metallic=0.6),
-            "Concrete": dict(diffuse=(0.42, 0.41, 0.39), roughness=0.9),
-            # Emissive glass: nits, chosen to read as a glowing lens at night exposures
-            # (the physical lens luminance, ~40k nits, would just clip to white).
-            "Lens": dict(diffuse=(0.8, 0.78, 0.7), roughness=0.2, emissive=(30.0, 22.0, 13.0)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "PaintedMetal": dict(diffuse=(0.07, 0.09, 0.08), roughness=0.45, metallic=0.6),
+                "Concrete": dict(diffuse=(0.42, 0.41, 0.39), roughness=0.9),
+                # Emissive glass: nits, chosen to read as a glowing lens at night exposures
+                # (the physical lens luminance, ~40k nits, would just clip to white).
+                "Lens": dict(diffuse=(0.8, 0.78, 0.7), roughness=0.2, emissive=(30.0, 22.0, 13.0)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Base", box_c((0, 0.15, 0), (0.3, 0.3, 0.3), bottom=False),
-                   material=_mat(root, "Concrete"))
-            w.mesh("Pole", cylinder(0.06, 0.3, 4.98, sides=12, bottom=False),
-                   material=_mat(root, "PaintedMetal"))
-            w.mesh("Head", merge([box((0.0, 4.9, -0.04), (0.4, 4.97, 0.04)),
-                                  box((0.3, 4.9, -0.14), (0.9, 5.02, 0.14))]),
-                   material=_mat(root, "PaintedMetal"))
-            w.mesh("Lens", box((0.35, 4.885, -0.11), (0.85, 4.9, 0.11)),
-                   material=_mat(root, "Lens"))
+            w.mesh(
+                "Base",
+                box_c((0, 0.15, 0), (0.3, 0.3, 0.3), bottom=False),
+                material=_mat(root, "Concrete"),
+            )
+            w.mesh(
+                "Pole",
+                cylinder(0.06, 0.3, 4.98, sides=12, bottom=False),
+                material=_mat(root, "PaintedMetal"),
+            )
+            w.mesh(
+                "Head",
+                merge(
+                    [
+                        box((0.0, 4.9, -0.04), (0.4, 4.97, 0.04)),
+                        box((0.3, 4.9, -0.14), (0.9, 5.02, 0.14)),
+                    ]
+                ),
+                material=_mat(root, "PaintedMetal"),
+            )
+            w.mesh(
+                "Lens", box((0.35, 4.885, -0.11), (0.85, 4.9, 0.11)), material=_mat(root, "Lens")
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=True), doc=d.doc()):
             w.comment(
                 "rotateX -90 points the light's -Z (cone and IES axis) down; IES H = 0 stays +X.\n"
@@ -265,23 +296,42 @@ def wall_torch() -> str:
 
     def body(w: UsdaWriter) -> None:
         w.comment("Wall at z = 0, torch sticks out along +Z. Origin = mounting point.")
-        _looks(w, root, {
-            "Iron": dict(diffuse=(0.05, 0.05, 0.05), roughness=0.55, metallic=0.8),
-            "Wood": dict(diffuse=(0.3, 0.18, 0.09), roughness=0.8),
-            "Flame": dict(diffuse=(0.05, 0.02, 0.0), roughness=1.0, emissive=(24.0, 9.0, 1.5)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "Iron": dict(diffuse=(0.05, 0.05, 0.05), roughness=0.55, metallic=0.8),
+                "Wood": dict(diffuse=(0.3, 0.18, 0.09), roughness=0.8),
+                "Flame": dict(diffuse=(0.05, 0.02, 0.0), roughness=1.0, emissive=(24.0, 9.0, 1.5)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Bracket", merge([
-                box((-0.06, -0.12, 0.0), (0.06, 0.12, 0.02)),
-                box((-0.015, -0.06, 0.02), (0.015, -0.03, 0.2)),
-            ]), material=_mat(root, "Iron"))
-            w.mesh("Stick", cylinder(0.022, -0.28, 0.0, sides=8, center=(0.0, 0.22)),
-                   material=_mat(root, "Wood"))
-            w.mesh("Cup", cylinder(0.04, 0.0, 0.035, sides=10, center=(0.0, 0.22), top=False),
-                   material=_mat(root, "Iron"))
-            w.mesh("Flame", _flame().transformed(translate=(0.0, 0.09, 0.22)),
-                   material=_mat(root, "Flame"),
-                   doc="Emitter stand-in, entirely inside the light's 5 cm radius.")
+            w.mesh(
+                "Bracket",
+                merge(
+                    [
+                        box((-0.06, -0.12, 0.0), (0.06, 0.12, 0.02)),
+                        box((-0.015, -0.06, 0.02), (0.015, -0.03, 0.2)),
+                    ]
+                ),
+                material=_mat(root, "Iron"),
+            )
+            w.mesh(
+                "Stick",
+                cylinder(0.022, -0.28, 0.0, sides=8, center=(0.0, 0.22)),
+                material=_mat(root, "Wood"),
+            )
+            w.mesh(
+                "Cup",
+                cylinder(0.04, 0.0, 0.035, sides=10, center=(0.0, 0.22), top=False),
+                material=_mat(root, "Iron"),
+            )
+            w.mesh(
+                "Flame",
+                _flame().transformed(translate=(0.0, 0.09, 0.22)),
+                material=_mat(root, "Flame"),
+                doc="Emitter stand-in, entirely inside the light's 5 cm radius.",
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=False), doc=d.doc()):
             _light_common(w, d)
             w.rel("collection:shadowLink:excludes", f"/{root}/Geom/Flame")
@@ -297,20 +347,36 @@ def ceiling_fixture() -> str:
 
     def body(w: UsdaWriter) -> None:
         w.comment("Ceiling at y = 0, the can hangs below it (12 cm).")
-        _looks(w, root, {
-            "Housing": dict(diffuse=(0.8, 0.8, 0.78), roughness=0.4),
-            "Reflector": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, metallic=1.0),
-            "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.3, emissive=(20.0, 19.0, 17.0)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "Housing": dict(diffuse=(0.8, 0.8, 0.78), roughness=0.4),
+                "Reflector": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, metallic=1.0),
+                "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.3, emissive=(20.0, 19.0, 17.0)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Trim", cylinder(0.1, -0.02, 0.0, sides=16, top=False),
-                   material=_mat(root, "Housing"))
-            w.mesh("Can", cylinder(0.07, -0.12, -0.02, sides=16, top=False, bottom=False),
-                   material=_mat(root, "Housing"))
-            w.mesh("Reflector", cylinder(0.068, -0.12, -0.02, sides=16, top=False, bottom=False,
-                                         inside=True), material=_mat(root, "Reflector"))
-            w.mesh("Lens", cylinder(0.05, -0.035, -0.03, sides=16, top=False),
-                   material=_mat(root, "Lens"))
+            w.mesh(
+                "Trim",
+                cylinder(0.1, -0.02, 0.0, sides=16, top=False),
+                material=_mat(root, "Housing"),
+            )
+            w.mesh(
+                "Can",
+                cylinder(0.07, -0.12, -0.02, sides=16, top=False, bottom=False),
+                material=_mat(root, "Housing"),
+            )
+            w.mesh(
+                "Reflector",
+                cylinder(0.068, -0.12, -0.02, sides=16, top=False, bottom=False, inside=True),
+                material=_mat(root, "Reflector"),
+            )
+            w.mesh(
+                "Lens",
+                cylinder(0.05, -0.035, -0.03, sides=16, top=False),
+                material=_mat(root, "Lens"),
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=True), doc=d.doc()):
             w.comment("Axis down (rotateX -90); narrow 25 deg IES, normalised.")
             _light_common(w, d)
@@ -330,17 +396,21 @@ def neon_strip() -> str:
             "Wall at z = 0, the 1.2 m tube runs along X and faces +Z.\n"
             "variantSet neonColor picks the colour (magenta default, cyan, amber)."
         )
-        _looks(w, root, {
-            "Rail": dict(diffuse=(0.08, 0.08, 0.08), roughness=0.5, metallic=0.5),
-            # Colours come from the neonColor variant: a local opinion here would be
-            # stronger than the variant's (LIVRPS) and pin every sign to one colour.
-            "Tube": dict(diffuse=None, roughness=0.25),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "Rail": dict(diffuse=(0.08, 0.08, 0.08), roughness=0.5, metallic=0.5),
+                # Colours come from the neonColor variant: a local opinion here would be
+                # stronger than the variant's (LIVRPS) and pin every sign to one colour.
+                "Tube": dict(diffuse=None, roughness=0.25),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Rail", box((-0.62, -0.03, 0.0), (0.62, 0.03, 0.02)),
-                   material=_mat(root, "Rail"))
-            w.mesh("Tube", box((-0.6, -0.02, 0.02), (0.6, 0.02, 0.05)),
-                   material=_mat(root, "Tube"))
+            w.mesh(
+                "Rail", box((-0.62, -0.03, 0.0), (0.62, 0.03, 0.02)), material=_mat(root, "Rail")
+            )
+            w.mesh("Tube", box((-0.6, -0.02, 0.02), (0.6, 0.02, 0.05)), material=_mat(root, "Tube"))
         with w.prim("RectLight", "Light", meta=_light_schemas(d, shaping=False), doc=d.doc()):
             w.comment(
                 "RectLight emits along its -Z: rotateY 180 turns it to face +Z (out).\n"
@@ -361,9 +431,14 @@ def neon_strip() -> str:
                                 w.attr("color3f inputs:emissiveColor", vec(emissive))
 
     return _prefab(
-        "neon_strip", root, "Neon tube sign, unshadowed RectLight.", body,
-        meta=['variants = {\n    string neonColor = "magenta"\n}',
-              'prepend variantSets = "neonColor"'],
+        "neon_strip",
+        root,
+        "Neon tube sign, unshadowed RectLight.",
+        body,
+        meta=[
+            'variants = {\n    string neonColor = "magenta"\n}',
+            'prepend variantSets = "neonColor"',
+        ],
     )
 
 
@@ -377,12 +452,21 @@ def enemy_orb() -> str:
             "shadow capture with its near plane at the light radius never sees it; it is\n"
             "also excluded by shadow linking. Marked dynamic: drawn into dynamic maps only."
         )
-        _looks(w, root, {
-            "Shell": dict(diffuse=(1.0, 0.45, 0.7), roughness=0.3, emissive=(12.0, 4.0, 8.0)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "Shell": dict(diffuse=(1.0, 0.45, 0.7), roughness=0.3, emissive=(12.0, 4.0, 8.0)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Shell", sphere(0.09, rings=8, segments=12), material=_mat(root, "Shell"),
-                   api_schemas=["StbGeometryAPI"], extra_attrs=[("uniform bool stb:dynamic", "1")])
+            w.mesh(
+                "Shell",
+                sphere(0.09, rings=8, segments=12),
+                material=_mat(root, "Shell"),
+                api_schemas=["StbGeometryAPI"],
+                extra_attrs=[("uniform bool stb:dynamic", "1")],
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=False), doc=d.doc()):
             _light_common(w, d)
             w.rel("collection:shadowLink:excludes", f"/{root}/Geom/Shell")
@@ -397,15 +481,25 @@ def ground_uplight() -> str:
 
     def body(w: UsdaWriter) -> None:
         w.comment("Flush in-ground uplight: ground at y = 0, beam straight up.")
-        _looks(w, root, {
-            "Steel": dict(diffuse=(0.3, 0.3, 0.3), roughness=0.35, metallic=1.0),
-            "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, emissive=(10.0, 8.5, 6.5)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "Steel": dict(diffuse=(0.3, 0.3, 0.3), roughness=0.35, metallic=1.0),
+                "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, emissive=(10.0, 8.5, 6.5)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Housing", box((-0.1, 0.0, -0.1), (0.1, 0.05, 0.1), bottom=False),
-                   material=_mat(root, "Steel"))
-            w.mesh("Lens", cylinder(0.05, 0.05, 0.055, sides=16, bottom=False),
-                   material=_mat(root, "Lens"))
+            w.mesh(
+                "Housing",
+                box((-0.1, 0.0, -0.1), (0.1, 0.05, 0.1), bottom=False),
+                material=_mat(root, "Steel"),
+            )
+            w.mesh(
+                "Lens",
+                cylinder(0.05, 0.05, 0.055, sides=16, bottom=False),
+                material=_mat(root, "Lens"),
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=True), doc=d.doc()):
             w.comment(
                 "Axis down like every IES light here (IES nadir = light -Z); the profile\n"
@@ -425,18 +519,33 @@ def wall_washer() -> str:
 
     def body(w: UsdaWriter) -> None:
         w.comment("Wall at z = 0; the head sits 0.6 m out on an arm and washes the wall below.")
-        _looks(w, root, {
-            "PaintedMetal": dict(diffuse=(0.1, 0.1, 0.1), roughness=0.45, metallic=0.6),
-            "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, emissive=(15.0, 13.0, 10.0)),
-        })
+        _looks(
+            w,
+            root,
+            {
+                "PaintedMetal": dict(diffuse=(0.1, 0.1, 0.1), roughness=0.45, metallic=0.6),
+                "Lens": dict(diffuse=(0.9, 0.9, 0.9), roughness=0.2, emissive=(15.0, 13.0, 10.0)),
+            },
+        )
         with w.prim("Xform", "Geom"):
-            w.mesh("Arm", merge([box((-0.05, -0.05, 0.0), (0.05, 0.05, 0.02)),
-                                 box((-0.02, -0.02, 0.02), (0.02, 0.02, 0.62))]),
-                   material=_mat(root, "PaintedMetal"))
-            w.mesh("Head", box((-0.09, -0.04, 0.5), (0.09, 0.03, 0.7)),
-                   material=_mat(root, "PaintedMetal"))
-            w.mesh("Lens", box((-0.07, -0.05, 0.53), (0.07, -0.04, 0.67)),
-                   material=_mat(root, "Lens"))
+            w.mesh(
+                "Arm",
+                merge(
+                    [
+                        box((-0.05, -0.05, 0.0), (0.05, 0.05, 0.02)),
+                        box((-0.02, -0.02, 0.02), (0.02, 0.02, 0.62)),
+                    ]
+                ),
+                material=_mat(root, "PaintedMetal"),
+            )
+            w.mesh(
+                "Head",
+                box((-0.09, -0.04, 0.5), (0.09, 0.03, 0.7)),
+                material=_mat(root, "PaintedMetal"),
+            )
+            w.mesh(
+                "Lens", box((-0.07, -0.05, 0.53), (0.07, -0.04, 0.67)), material=_mat(root, "Lens")
+            )
         with w.prim("SphereLight", "Light", meta=_light_schemas(d, shaping=True), doc=d.doc()):
             w.comment(
                 "rotateXYZ (-90, 90, 0): -Z (IES nadir) points down and +X (IES H = 0, the\n"
@@ -500,8 +609,11 @@ def _orb_paths() -> dict[str, np.ndarray]:
     normal = np.array([math.sin(a), 0.0, math.cos(a)])  # arch plane is the local XY plane
     along = np.array([math.cos(a), 0.0, -math.sin(a)])
     c = np.array(RUIN["pos"]) + np.array([0.0, 1.5, 0.0])
-    paths["Orb_Ruin"] = c + w_[:, None] * normal + u_[:, None] * along + np.stack(
-        [np.zeros_like(t), 0.25 * np.sin(3 * t), np.zeros_like(t)], -1
+    paths["Orb_Ruin"] = (
+        c
+        + w_[:, None] * normal
+        + u_[:, None] * along
+        + np.stack([np.zeros_like(t), 0.25 * np.sin(3 * t), np.zeros_like(t)], -1)
     )
     # C: ellipse in and out of the arcade, between the columns.
     paths["Orb_Arcade"] = np.stack(
@@ -553,58 +665,111 @@ def _courtyard_geometry() -> dict[str, tuple[MeshData, str, str]]:
     g: dict[str, tuple[MeshData, str, str]] = {}
     g["Ground"] = (plane(30.0, 30.0), "Cobble", "30 x 30 m ground, the courtyard is 20 x 20 m.")
     # North building with a cornice, a door and a row of windows.
-    windows_lit = [merge([box((x - 0.4, 4.0, -10.0), (x + 0.4, 5.2, -9.98))
-                          for x in (-10.0, -4.0, 4.0, 10.0)]),
-                   merge([box((-10.02, 2.6, z - 0.4), (-10.0, 3.8, z + 0.4)) for z in (-8.0, 8.0)])]
-    windows_dark = [merge([box((x - 0.4, 4.0, -10.0), (x + 0.4, 5.2, -9.98))
-                           for x in (-8.0, -6.0, -1.2, 1.2, 6.0, 8.0)]),
-                    merge([box((-10.02, 2.6, z - 0.4), (-10.0, 3.8, z + 0.4)) for z in (0.0, 4.0)])]
-    g["NorthBuilding"] = (merge([box((-15.0, 0.0, -16.0), (10.0, 6.5, -10.0), bottom=False),
-                                 box((-15.0, 6.2, -10.0), (10.0, 6.5, -9.75))]),
-                          "Plaster", "Facade at z = -10 (faces +Z), 6.5 m tall.")
+    windows_lit = [
+        merge(
+            [box((x - 0.4, 4.0, -10.0), (x + 0.4, 5.2, -9.98)) for x in (-10.0, -4.0, 4.0, 10.0)]
+        ),
+        merge([box((-10.02, 2.6, z - 0.4), (-10.0, 3.8, z + 0.4)) for z in (-8.0, 8.0)]),
+    ]
+    windows_dark = [
+        merge(
+            [
+                box((x - 0.4, 4.0, -10.0), (x + 0.4, 5.2, -9.98))
+                for x in (-8.0, -6.0, -1.2, 1.2, 6.0, 8.0)
+            ]
+        ),
+        merge([box((-10.02, 2.6, z - 0.4), (-10.0, 3.8, z + 0.4)) for z in (0.0, 4.0)]),
+    ]
+    g["NorthBuilding"] = (
+        merge(
+            [
+                box((-15.0, 0.0, -16.0), (10.0, 6.5, -10.0), bottom=False),
+                box((-15.0, 6.2, -10.0), (10.0, 6.5, -9.75)),
+            ]
+        ),
+        "Plaster",
+        "Facade at z = -10 (faces +Z), 6.5 m tall.",
+    )
     g["NorthDoor"] = (box((-1.0, 0.0, -10.0), (1.0, 2.4, -9.95), bottom=False), "Wood", "")
-    g["WestBuilding"] = (box((-16.0, 0.0, -10.0), (-10.0, 5.0, 11.0), bottom=False), "Brick",
-                         "Facade at x = -10 (faces +X), 5 m tall.")
+    g["WestBuilding"] = (
+        box((-16.0, 0.0, -10.0), (-10.0, 5.0, 11.0), bottom=False),
+        "Brick",
+        "Facade at x = -10 (faces +X), 5 m tall.",
+    )
     g["WindowsLit"] = (merge(windows_lit), "WindowLit", "Warm lit windows (emissive only).")
     g["WindowsDark"] = (merge(windows_dark), "Glass", "")
     # East: arcade (columns, lintel, roof) in front of a taller building.
-    g["EastBuilding"] = (box((10.0, 0.0, -16.0), (16.0, 7.0, 11.0), bottom=False), "Plaster",
-                         "Arcade back wall at x = 10 (faces -X), 7 m tall.")
-    cols = [cylinder(0.25, 0.0, 3.2, sides=16, center=(COLUMN_X, z), top=False, bottom=False)
-            for z in COLUMNS_Z]
+    g["EastBuilding"] = (
+        box((10.0, 0.0, -16.0), (16.0, 7.0, 11.0), bottom=False),
+        "Plaster",
+        "Arcade back wall at x = 10 (faces -X), 7 m tall.",
+    )
+    cols = [
+        cylinder(0.25, 0.0, 3.2, sides=16, center=(COLUMN_X, z), top=False, bottom=False)
+        for z in COLUMNS_Z
+    ]
     caps = [box_c((COLUMN_X, 3.1, z), (0.6, 0.2, 0.6)) for z in COLUMNS_Z]
     g["ArcadeColumns"] = (merge(cols + caps), "Stone", "Six columns, r 0.25 m, x = 7.4.")
-    g["ArcadeRoof"] = (merge([box((7.05, 3.2, -10.0), (7.75, 3.5, 10.0)),
-                              box((7.05, 3.5, -10.0), (10.0, 3.8, 10.0))]), "Stone",
-                       "Lintel + roof slab; its underside (y = 3.5) carries the downlights.")
+    g["ArcadeRoof"] = (
+        merge(
+            [box((7.05, 3.2, -10.0), (7.75, 3.5, 10.0)), box((7.05, 3.5, -10.0), (10.0, 3.8, 10.0))]
+        ),
+        "Stone",
+        "Lintel + roof slab; its underside (y = 3.5) carries the downlights.",
+    )
     # South: low wall with a gate arch.
-    g["SouthWall"] = (merge([box((-10.0, 0.0, 10.0), (GATE_X - 2.2, 1.1, 10.5), bottom=False),
-                             box((GATE_X + 2.2, 0.0, 10.0), (10.0, 1.1, 10.5), bottom=False)]),
-                      "Stone", "Low wall along z = 10.")
-    g["Gate"] = (arch(3.2, 2.4, 0.6, 0.5).transformed(translate=(GATE_X, 0.0, 10.25)), "Stone",
-                 "Round-arched gate, 3.2 m opening.")
+    g["SouthWall"] = (
+        merge(
+            [
+                box((-10.0, 0.0, 10.0), (GATE_X - 2.2, 1.1, 10.5), bottom=False),
+                box((GATE_X + 2.2, 0.0, 10.0), (10.0, 1.1, 10.5), bottom=False),
+            ]
+        ),
+        "Stone",
+        "Low wall along z = 10.",
+    )
+    g["Gate"] = (
+        arch(3.2, 2.4, 0.6, 0.5).transformed(translate=(GATE_X, 0.0, 10.25)),
+        "Stone",
+        "Round-arched gate, 3.2 m opening.",
+    )
     # Fountain at the centre.
-    g["Fountain"] = (merge([cylinder(2.0, 0.0, 0.55, sides=24, bottom=False),
-                            cylinder(0.35, 0.55, 1.6, sides=12, top=False, bottom=False),
-                            cylinder(0.8, 1.6, 1.8, sides=16),
-                            sphere(0.2, rings=6, segments=10, center=(0.0, 2.0, 0.0))]),
-                     "Stone", "Basin r 2 m, pedestal and bowl.")
+    g["Fountain"] = (
+        merge(
+            [
+                cylinder(2.0, 0.0, 0.55, sides=24, bottom=False),
+                cylinder(0.35, 0.55, 1.6, sides=12, top=False, bottom=False),
+                cylinder(0.8, 1.6, 1.8, sides=16),
+                sphere(0.2, rings=6, segments=10, center=(0.0, 2.0, 0.0)),
+            ]
+        ),
+        "Stone",
+        "Basin r 2 m, pedestal and bowl.",
+    )
     g["Water"] = (cylinder(1.85, 0.55, 0.56, sides=24, bottom=False), "Water", "")
     # Ruined arch, crates and barrels: shadow casters.
     r = RUIN
-    g["Ruin"] = (arch(r["width"], r["pier"], r["depth"], r["thickness"], top_flat=False)
-                 .transformed(translate=r["pos"], yaw_deg=r["yaw"]), "Stone",
-                 "Free-standing ruined arch; Orb_Ruin flies through it.")
-    crates = [box_c((-8.5, 0.5, -8.4), (1.0, 1.0, 1.0), bottom=False),
-              box_c((-7.3, 0.45, -8.7), (0.9, 0.9, 0.9), bottom=False),
-              box_c((-8.4, 1.4, -8.4), (0.8, 0.8, 0.8)),
-              box_c((-8.7, 0.4, -6.9), (0.8, 0.8, 0.8), bottom=False),
-              box_c((4.0, 0.45, 8.3), (0.9, 0.9, 0.9), bottom=False).transformed(yaw_deg=0),
-              box_c((5.1, 0.35, 8.6), (0.7, 0.7, 0.7), bottom=False),
-              box_c((-6.5, 0.5, 2.0), (1.0, 1.0, 1.0), bottom=False)]
+    g["Ruin"] = (
+        arch(r["width"], r["pier"], r["depth"], r["thickness"], top_flat=False).transformed(
+            translate=r["pos"], yaw_deg=r["yaw"]
+        ),
+        "Stone",
+        "Free-standing ruined arch; Orb_Ruin flies through it.",
+    )
+    crates = [
+        box_c((-8.5, 0.5, -8.4), (1.0, 1.0, 1.0), bottom=False),
+        box_c((-7.3, 0.45, -8.7), (0.9, 0.9, 0.9), bottom=False),
+        box_c((-8.4, 1.4, -8.4), (0.8, 0.8, 0.8)),
+        box_c((-8.7, 0.4, -6.9), (0.8, 0.8, 0.8), bottom=False),
+        box_c((4.0, 0.45, 8.3), (0.9, 0.9, 0.9), bottom=False).transformed(yaw_deg=0),
+        box_c((5.1, 0.35, 8.6), (0.7, 0.7, 0.7), bottom=False),
+        box_c((-6.5, 0.5, 2.0), (1.0, 1.0, 1.0), bottom=False),
+    ]
     g["Crates"] = (merge(crates), "Wood", "")
-    barrels = [cylinder(0.33, 0.0, 0.9, sides=12, center=c, bottom=False)
-               for c in ((-6.4, -8.8), (3.0, 8.9), (-6.3, 3.3))]
+    barrels = [
+        cylinder(0.33, 0.0, 0.9, sides=12, center=c, bottom=False)
+        for c in ((-6.4, -8.8), (3.0, 8.9), (-6.3, 3.3))
+    ]
     g["Barrels"] = (merge(barrels), "DarkWood", "")
     return g
 
@@ -623,10 +788,20 @@ MATERIALS = {
 }
 
 
-def _instance(w: UsdaWriter, name: str, prefab: str, pos, yaw: float = 0.0,
-              instanceable: bool = True, variant: tuple[str, str] | None = None, body=None):
-    meta = [f"instanceable = {'true' if instanceable else 'false'}",
-            f"prepend references = @./prefabs/{prefab}.usda@"]
+def _instance(
+    w: UsdaWriter,
+    name: str,
+    prefab: str,
+    pos,
+    yaw: float = 0.0,
+    instanceable: bool = True,
+    variant: tuple[str, str] | None = None,
+    body=None,
+):
+    meta = [
+        f"instanceable = {'true' if instanceable else 'false'}",
+        f"prepend references = @./prefabs/{prefab}.usda@",
+    ]
     if variant:
         meta.append(f'variants = {{\n    string {variant[0]} = "{variant[1]}"\n}}')
     with w.prim("Xform", name, meta=meta):
@@ -712,7 +887,7 @@ def default_scene() -> str:
         doc="Raised view from beyond the south wall, 20 mm lens, 36 x 20.25 mm (16:9) aperture.",
         comment=(
             f"exposure {key_exposure:g} stops -> ComputeLinearExposureScale() = "
-            f"{2 ** key_exposure:g} (fStop 1, time 1 s, iso 100, responsivity 1).\n"
+            f"{2**key_exposure:g} (fStop 1, time 1 s, iso 100, responsivity 1).\n"
             f"Chosen so an 18 % grey card under ~{DEFAULT_KEY_LUX:g} lx -> 0.18 scene-linear:\n"
             "lamp- and torch-lit surfaces here (25-75 lx) land at ~0.3-1.0, moonlit ones ~0.1."
         ),
@@ -727,9 +902,13 @@ CAMERA_FOCAL_MM = 20.0
 
 def _sky_lights(w: UsdaWriter) -> None:
     with w.prim("Xform", "Sky"):
-        with w.prim("DistantLight", "Moon", meta=[_schemas("ShadowAPI")],
-                    doc="Low moon / last dusk light: 3 lux on a surface facing it, 9000 K, "
-                        "from the south-south-east at 18 deg elevation."):
+        with w.prim(
+            "DistantLight",
+            "Moon",
+            meta=[_schemas("ShadowAPI")],
+            doc="Low moon / last dusk light: 3 lux on a surface facing it, 9000 K, "
+            "from the south-south-east at 18 deg elevation.",
+        ):
             w.comment("normalize = 1: intensity is the illuminance (lux) of a facing surface.")
             w.attr("float inputs:angle", "0.53")
             w.attr("float inputs:colorTemperature", "9000")
@@ -739,9 +918,12 @@ def _sky_lights(w: UsdaWriter) -> None:
             w.attr("bool inputs:shadow:enable", "1")
             w.xform(rotate_xyz=(-18, 20, 0))
         sky = (0.3, 0.42, 0.75)
-        with w.prim("DomeLight", "SkyDome",
-                    doc=f"Uniform dusk sky, no texture: radiance 1 nit x colour "
-                        f"(luminance {luminance(sky):.2f} nits), ~1.3 lx on open ground."):
+        with w.prim(
+            "DomeLight",
+            "SkyDome",
+            doc=f"Uniform dusk sky, no texture: radiance 1 nit x colour "
+            f"(luminance {luminance(sky):.2f} nits), ~1.3 lx on open ground.",
+        ):
             w.attr("color3f inputs:color", vec(sky))
             w.attr("float inputs:intensity", "1")
 
@@ -754,8 +936,12 @@ def _local_lights(w: UsdaWriter) -> None:
             yaw = math.degrees(math.atan2(z, -x))  # prefab +X (street side) -> centre
             _instance(w, f"Lamp_{k + 1:02d}", "street_lamp", (x, 0.0, z), round(yaw, 2))
 
-    with w.prim("Xform", "Torches", doc="wall_torch at ~2.4 m; the two gate torches flicker "
-                "(not instanceable: their light's intensity is overridden with time samples)."):
+    with w.prim(
+        "Xform",
+        "Torches",
+        doc="wall_torch at ~2.4 m; the two gate torches flicker "
+        "(not instanceable: their light's intensity is overridden with time samples).",
+    ):
         for name, pos, yaw in TORCHES:
             _instance(w, name, "wall_torch", pos, yaw)
         rng = np.random.default_rng(1900)
@@ -812,8 +998,11 @@ def outputs() -> dict[Path, str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--check", action="store_true",
-                    help="write nothing; exit 1 if a checked-in file differs from the generator")
+    ap.add_argument(
+        "--check",
+        action="store_true",
+        help="write nothing; exit 1 if a checked-in file differs from the generator",
+    )
     args = ap.parse_args(argv)
     stale = []
     for path, text in outputs().items():

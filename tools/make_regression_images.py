@@ -29,10 +29,12 @@ def write_scenes() -> None:
     from stb_hydra.scenegen.lights import build_lights_stage
 
     OUT.mkdir(parents=True, exist_ok=True)
-    build_lights_stage(n_lights=64, seed=3, shadow_fraction=0.6, dynamic_fraction=0.3,
-                       path=OUT / "lights64.usda")
-    build_lights_stage(n_lights=12, seed=5, types="ies", shadow_fraction=0.5,
-                       path=OUT / "ies12.usda")
+    build_lights_stage(
+        n_lights=64, seed=3, shadow_fraction=0.6, dynamic_fraction=0.3, path=OUT / "lights64.usda"
+    )
+    build_lights_stage(
+        n_lights=12, seed=5, types="ies", shadow_fraction=0.5, path=OUT / "ies12.usda"
+    )
     build_chess_stage(n_lights=24, seed=2, path=OUT / "chess24.usda")
 
 

@@ -343,9 +343,7 @@ def _run(args: argparse.Namespace) -> int:
         raise CliError("--frames must be >= 1 and --warmup >= 0")
     if args.max_seconds is not None and not args.max_seconds > 0:
         raise CliError("--max-seconds must be > 0")
-    methods = parse_methods(
-        args.methods or [DEFAULT_METHODS], method_defaults(args, avail), avail
-    )
+    methods = parse_methods(args.methods or [DEFAULT_METHODS], method_defaults(args, avail), avail)
     _check_method_options(methods)
     sizes = _sizes(args)
     cases = [c for spec in args.scenes for c in parse_scene(spec)]
@@ -406,8 +404,16 @@ def run_bench(
                 for m in methods:
                     bar.set_description(f"{m.label} {case.label} {size[0]}x{size[1]}")
                     rec = bench_one(
-                        stage, case.label, m, size, frames=frames, warmup=warmup,
-                        max_seconds=max_seconds, camera=camera, time=time, seed=seed,
+                        stage,
+                        case.label,
+                        m,
+                        size,
+                        frames=frames,
+                        warmup=warmup,
+                        max_seconds=max_seconds,
+                        camera=camera,
+                        time=time,
+                        seed=seed,
                         on_frame=lambda: bar.update(1),
                     )
                     records.append(rec)
@@ -457,7 +463,11 @@ def bench_one(
     try:
         load_before = load_average()
         m = measure_engine(
-            eng, frames=frames, warmup=warmup, time=time, on_frame=on_frame,
+            eng,
+            frames=frames,
+            warmup=warmup,
+            time=time,
+            on_frame=on_frame,
             max_seconds=max_seconds,
         )
         scene_lights = int(eng.delegate.light_table.local_mask().sum())
@@ -500,8 +510,21 @@ def _write_text(path: str, text: str) -> None:
 
 
 CSV_FIELDS = (
-    "method", "label", "scene", "lights", "scene_lights", "width", "height", "frames",
-    "frame_ms", "frame_ms_min", "frame_ms_max", "gpu_ms", "cpu_ms", "cull_upload_ms", "load_avg",
+    "method",
+    "label",
+    "scene",
+    "lights",
+    "scene_lights",
+    "width",
+    "height",
+    "frames",
+    "frame_ms",
+    "frame_ms_min",
+    "frame_ms_max",
+    "gpu_ms",
+    "cpu_ms",
+    "cull_upload_ms",
+    "load_avg",
 )
 
 

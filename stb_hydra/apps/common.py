@@ -77,8 +77,13 @@ class Reporter:
     ``tqdm.write`` while a progress bar is shown (:attr:`bar`), so they do not break it.
     """
 
-    def __init__(self, prog: str, quiet: bool = False, stream: TextIO | None = None,
-                 base_dir: str | None = None) -> None:
+    def __init__(
+        self,
+        prog: str,
+        quiet: bool = False,
+        stream: TextIO | None = None,
+        base_dir: str | None = None,
+    ) -> None:
         self.prog = prog
         self.quiet = quiet
         self.stream = stream

@@ -22,8 +22,7 @@ def _num(x: float) -> float | None:
     return round(x, 6) if math.isfinite(x) else None
 
 
-def inspect_stage(stage, time: float | None = None,
-                  usd_warnings: list[str] | None = None) -> dict:
+def inspect_stage(stage, time: float | None = None, usd_warnings: list[str] | None = None) -> dict:
     """The ``stb inspect`` report as a JSON-ready dict (schema in the README).
     ``time``: ``"default"`` when the stage is read at its default time (no time given
     and no authored time range). ``usd_warnings``: USD's own diagnostics (one line
@@ -78,8 +77,9 @@ def inspect_stage(stage, time: float | None = None,
                 "color": _vec(lp.shadow_color),
             },
             "range": (
-                _num(lp.range if lp.range_authored else influence_range(lp.peak_intensity,
-                                                                        exposure))
+                _num(
+                    lp.range if lp.range_authored else influence_range(lp.peak_intensity, exposure)
+                )
                 if local
                 else None
             ),

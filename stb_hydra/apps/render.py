@@ -54,8 +54,12 @@ def add_parser(sub) -> None:
     p.add_argument("--camera", help="camera prim path (default: the first camera, else a free one)")
     p.add_argument("--frames", help="F, A:B or A:BxS (default: the stage's start time)")
     p.add_argument("--width", type=int, default=960, help="image width in pixels (default 960)")
-    p.add_argument("--height", type=int, default=None,
-                   help="image height in pixels (default: from the camera aspect)")
+    p.add_argument(
+        "--height",
+        type=int,
+        default=None,
+        help="image height in pixels (default: from the camera aspect)",
+    )
     p.add_argument(
         "--lighting",
         default="reference",
@@ -107,8 +111,12 @@ def add_parser(sub) -> None:
         help="local shadow filter: 4-tap gather PCF, or stochastic PCF",
     )
     p.add_argument("--verbose", "-v", action="store_true", help="print the GL renderer")
-    p.add_argument("--quiet", "-q", action="store_true",
-                   help="no warnings, no progress bar, no messages (errors still print)")
+    p.add_argument(
+        "--quiet",
+        "-q",
+        action="store_true",
+        help="no warnings, no progress bar, no messages (errors still print)",
+    )
     p.add_argument(
         "--print-graph",
         action="store_true",
@@ -160,8 +168,10 @@ def _check_settings(args: argparse.Namespace) -> list[str]:
     if args.width <= 0:
         raise CliError(f"--width must be a positive number of pixels, got {args.width}")
     if args.height is not None and args.height <= 0:
-        raise CliError(f"--height must be a positive number of pixels, got {args.height} "
-                       "(leave it out to follow the camera aspect)")
+        raise CliError(
+            f"--height must be a positive number of pixels, got {args.height} "
+            "(leave it out to follow the camera aspect)"
+        )
     if args.accumulate < 1:
         raise CliError("--accumulate must be >= 1")
     aovs = [a.strip() for a in args.aov.split(",") if a.strip()]
@@ -315,8 +325,7 @@ def _warn_no_lights(eng, args: argparse.Namespace, rep: Reporter) -> None:
     lights = [sp.light for sp in eng.delegate.lights.values() if sp.light is not None]
     if any(lp.enabled for lp in lights) or args.ambient > 0:
         return
-    why = (f"none of its {len(lights)} lights is enabled" if lights
-           else "the stage has no lights")
+    why = f"none of its {len(lights)} lights is enabled" if lights else "the stage has no lights"
     rep.warn(f"{why}: the image shows unlit (black) geometry; add a light or --ambient")
 
 
@@ -388,8 +397,9 @@ class _Progress:
         self.rep.bar = None
 
 
-def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
-                   stats: dict, rep: Reporter) -> int:
+def _render_frames(
+    args: argparse.Namespace, eng, frames, aovs, ext, pipeline, stats: dict, rep: Reporter
+) -> int:
     """Render and write every frame (``stats["frames"]``, then ``stats["warnings"]``);
     releases the engine. Returns the number of frames written."""
     from ..io.images import ImageWriteError, frame_path, has_frame_placeholder
@@ -435,8 +445,11 @@ def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
                     "output": out,
                     "wall_ms": round(wall, 3),
                     "timings_ms": {k: round(v, 3) for k, v in eng.timings.frames[-1].items()},
-                    **{k: v for k, v in frame.stats.items()
-                       if v is None or isinstance(v, (int, float, bool))},
+                    **{
+                        k: v
+                        for k, v in frame.stats.items()
+                        if v is None or isinstance(v, (int, float, bool))
+                    },
                 }
             )
     except ImageWriteError as exc:
@@ -447,8 +460,10 @@ def _render_frames(args: argparse.Namespace, eng, frames, aovs, ext, pipeline,
     if skipped:
         names = ", ".join(os.path.basename(p) for p in skipped[:3])
         more = f" ... {os.path.basename(skipped[-1])}" if len(skipped) > 3 else ""
-        rep.say(f"stb render: --skip-existing skipped {len(skipped)} of {len(frames)} "
-                f"frame{'s' if len(frames) != 1 else ''} (files exist: {names}{more})")
+        rep.say(
+            f"stb render: --skip-existing skipped {len(skipped)} of {len(frames)} "
+            f"frame{'s' if len(frames) != 1 else ''} (files exist: {names}{more})"
+        )
     stats["warnings"] = list(rep.lines)
     return written
 

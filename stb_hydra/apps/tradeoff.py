@@ -65,10 +65,31 @@ STYLE = {
 #: relMSE drawn for (near-)exact methods on the log axis.
 EXACT_FLOOR = 1e-7
 CSV_FIELDS = [
-    "scene", "method", "label", "N", "K", "weight_cap", "accumulate", "tile_cap",
-    "frame_ms", "frame_ms_min", "frame_ms_max", "lighting_ms", "prepare_ms", "image_ms", "relmse",
-    "flip", "hdr_flip", "temporal", "dropped_median", "dropped_max", "fov_lights",
-    "frames", "width", "height", "load1",
+    "scene",
+    "method",
+    "label",
+    "N",
+    "K",
+    "weight_cap",
+    "accumulate",
+    "tile_cap",
+    "frame_ms",
+    "frame_ms_min",
+    "frame_ms_max",
+    "lighting_ms",
+    "prepare_ms",
+    "image_ms",
+    "relmse",
+    "flip",
+    "hdr_flip",
+    "temporal",
+    "dropped_median",
+    "dropped_max",
+    "fov_lights",
+    "frames",
+    "width",
+    "height",
+    "load1",
 ]
 
 
@@ -101,9 +122,7 @@ def grid_units(
     for n in ns:
         for k in ks:
             for wc in (STB_CAP, None):
-                units.append(
-                    Unit("stb", {"N": n, "K": k, "weight_cap": wc}, tuple(accs), True)
-                )
+                units.append(Unit("stb", {"N": n, "K": k, "weight_cap": wc}, tuple(accs), True))
     units += [Unit("tiled", {"tile_cap": c}) for c in caps]
     units += [Unit("clustered"), Unit("lighttree")]
     if methods:
@@ -141,8 +160,9 @@ def open_scene(spec: str, seed: int = 0):
             raise CliError(f"bad scene '{spec}': use lights:N[:LO-HI] or chess:N") from None
         if count < 1:
             raise CliError("a generated scene needs at least one light")
-        if lumens is not None and (kind != "lights" or len(lumens) != 2
-                                   or not 0 < lumens[0] <= lumens[1]):
+        if lumens is not None and (
+            kind != "lights" or len(lumens) != 2 or not 0 < lumens[0] <= lumens[1]
+        ):
             raise CliError(f"bad scene '{spec}': lumens as LO-HI with 0 < LO <= HI (lights only)")
         name = f"{kind}{count}" + (f"_{lm}lm" if lm else "")
         return generated_stage(kind, count, seed, lumens), name
@@ -168,8 +188,13 @@ def _settings(args, method: str, options: dict):
     # shadow_budget None (offline): every shadow map captured before the first
     # warm-up frame, so the measured frames are a steady state.
     return RenderSettings(
-        width=args.width, height=args.height, camera=args.camera, lighting=method,
-        seed=args.seed, profile=True, method_options=dict(options),
+        width=args.width,
+        height=args.height,
+        camera=args.camera,
+        lighting=method,
+        seed=args.seed,
+        profile=True,
+        method_options=dict(options),
     )
 
 
@@ -189,8 +214,9 @@ class EnginePool:
             self.eng.timings.frames.clear()
             return self.eng
         self.close()
-        self.eng = Engine(self.stage, _settings(self.args, unit.method, unit.options),
-                          time=self.args.time)
+        self.eng = Engine(
+            self.stage, _settings(self.args, unit.method, unit.options), time=self.args.time
+        )
         return self.eng
 
     def close(self) -> None:
@@ -255,16 +281,21 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
     u = run.unit
     frame_ms = _median(run.times)
     base = {
-        "scene": scene, "method": u.method,
-        "N": u.options.get("N", ""), "K": u.options.get("K", ""),
+        "scene": scene,
+        "method": u.method,
+        "N": u.options.get("N", ""),
+        "K": u.options.get("K", ""),
         "weight_cap": (u.options.get("weight_cap") or 0) if u.method == "stb" else "",
         "tile_cap": (u.options.get("tile_cap") or "none") if u.method == "tiled" else "",
         "frame_ms": round(frame_ms, 3),
-        "frame_ms_min": round(min(run.times), 3), "frame_ms_max": round(max(run.times), 3),
+        "frame_ms_min": round(min(run.times), 3),
+        "frame_ms_max": round(max(run.times), 3),
         "lighting_ms": round(_median(run.lighting), 3),
         "prepare_ms": round(_median(run.prepare), 3),
         "fov_lights": int(run.stats[-1].get("fov_lights", 0)) if run.stats else 0,
-        "frames": len(run.times), "width": args.width, "height": args.height,
+        "frames": len(run.times),
+        "width": args.width,
+        "height": args.height,
         "load1": round(os.getloadavg()[0], 2),
         **dropped_summary(run.stats),
     }
@@ -276,7 +307,9 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
         disp = [display_referred(w) for w in wins]
         row = dict(base)
         row.update(
-            label=u.label(a), accumulate=a, image_ms=round(frame_ms * a, 3),
+            label=u.label(a),
+            accumulate=a,
+            image_ms=round(frame_ms * a, 3),
             relmse=float(np.mean([relmse(w, ref_img, args.eps) for w in wins])),
             flip=round(flip_ldr(disp[0], ref_disp), 6),
             hdr_flip=round(flip_hdr(wins[0], ref_img), 6) if args.hdr_flip else "",
@@ -348,21 +381,42 @@ def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
                 continue
             marker, color = STYLE[m]
             if m == "stb":
-                for a, alpha in zip(sorted({int(rows[i]["accumulate"]) for i in idx}),
-                                    (0.35, 0.65, 1.0, 1.0)):
+                for a, alpha in zip(
+                    sorted({int(rows[i]["accumulate"]) for i in idx}), (0.35, 0.65, 1.0, 1.0)
+                ):
                     sel = [i for i in idx if int(rows[i]["accumulate"]) == a]
-                    ax.scatter(t[sel], e[sel], marker=marker, color=color, alpha=alpha,
-                               s=28, label=f"stb A={a}")
+                    ax.scatter(
+                        t[sel],
+                        e[sel],
+                        marker=marker,
+                        color=color,
+                        alpha=alpha,
+                        s=28,
+                        label=f"stb A={a}",
+                    )
             else:
-                ax.scatter(t[idx], e[idx], marker=marker, color=color, s=70 if m == "reference"
-                           else 44, label=m, zorder=3)
+                ax.scatter(
+                    t[idx],
+                    e[idx],
+                    marker=marker,
+                    color=color,
+                    s=70 if m == "reference" else 44,
+                    label=m,
+                    zorder=3,
+                )
                 for i in idx:
                     if m == "tiled":
-                        ax.annotate(f"cap {rows[i]['tile_cap']}", (t[i], e[i]), fontsize=7,
-                                    xytext=(4, 4), textcoords="offset points")
+                        ax.annotate(
+                            f"cap {rows[i]['tile_cap']}",
+                            (t[i], e[i]),
+                            fontsize=7,
+                            xytext=(4, 4),
+                            textcoords="offset points",
+                        )
         front = pareto_front(t, e)
-        ax.step(t[front], e[front], where="post", color="k", lw=1.0, alpha=0.6,
-                label="Pareto frontier")
+        ax.step(
+            t[front], e[front], where="post", color="k", lw=1.0, alpha=0.6, label="Pareto frontier"
+        )
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(xlabel)
@@ -388,8 +442,7 @@ def _short(r: dict | None, key: str) -> str:
     if r is None:
         return "(none) | |"
     return (
-        f"{r['label']} ({float(r[key]):.0f} ms) | "
-        f"{float(r['relmse']):.3g} / {float(r['flip']):.3f}"
+        f"{r['label']} ({float(r[key]):.0f} ms) | {float(r['relmse']):.3g} / {float(r['flip']):.3f}"
     )
 
 
@@ -410,28 +463,41 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
         "",
     ]
     for key, heading in (
-        ("frame_ms", "Best configuration per frame-time budget (static camera, A frames "
-                     "accumulated over time)"),
+        (
+            "frame_ms",
+            "Best configuration per frame-time budget (static camera, A frames "
+            "accumulated over time)",
+        ),
         ("image_ms", "Best configuration per time-to-image budget (A x frame time)"),
     ):
         bs = budgets or default_budgets(rows, key)
-        lines += [f"## {heading}", "",
-                  "| budget (ms) | lowest relMSE | relMSE / FLIP | lowest FLIP | relMSE / FLIP |",
-                  "|---|---|---|---|---|"]
+        lines += [
+            f"## {heading}",
+            "",
+            "| budget (ms) | lowest relMSE | relMSE / FLIP | lowest FLIP | relMSE / FLIP |",
+            "|---|---|---|---|---|",
+        ]
         for b in bs:
             lines.append(
                 f"| {b:g} | {_short(best_within(rows, b, key), key)} | "
                 f"{_short(best_within(rows, b, key, 'flip'), key)} |"
             )
         lines.append("")
-    lines += ["## Cheapest configuration reaching an error level", "",
-              "| relMSE <= | cheapest (frame time) | time (ms) | relMSE | FLIP | temporal |",
-              "|---|---|---|---|---|---|"]
+    lines += [
+        "## Cheapest configuration reaching an error level",
+        "",
+        "| relMSE <= | cheapest (frame time) | time (ms) | relMSE | FLIP | temporal |",
+        "|---|---|---|---|---|---|",
+    ]
     for lvl in (1.0, 0.1, 1e-2, 1e-3, 1e-4):
         lines.append(f"| {lvl:g} " + _fmt_row(cheapest_reaching(rows, lvl)))
-    lines += ["", "## Pareto set (frame time)", "",
-              "| config | frame (ms) | lighting (ms) | relMSE | FLIP | temporal | dropped |",
-              "|---|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## Pareto set (frame time)",
+        "",
+        "| config | frame (ms) | lighting (ms) | relMSE | FLIP | temporal | dropped |",
+        "|---|---|---|---|---|---|---|",
+    ]
     t = np.array([float(r["frame_ms"]) for r in rows])
     e = np.array([float(r["relmse"]) for r in rows])
     for i in pareto_front(t, e):
@@ -441,9 +507,13 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
             f"{float(r['relmse']):.3g} | {float(r['flip']):.4f} | {float(r['temporal']):.4f} | "
             f"{r['dropped_median']:g} |"
         )
-    lines += ["", "## Exact methods and capped lists", "",
-              "| config | frame (ms) | lighting (ms) | relMSE | FLIP | dropped/frame |",
-              "|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## Exact methods and capped lists",
+        "",
+        "| config | frame (ms) | lighting (ms) | relMSE | FLIP | dropped/frame |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in rows:
         if r["method"] != "stb":
             lines.append(
@@ -532,24 +602,34 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
         pool.close()
         bar.close()
     meta = {
-        "scene": args.scene, "width": args.width, "height": args.height,
+        "scene": args.scene,
+        "width": args.width,
+        "height": args.height,
         "fov_lights": rows[0]["fov_lights"] if rows else 0,
         "renderer": renderer_info(get_context()),
         "date": _dt.datetime.now().isoformat("T", "seconds"),
-        "load_before": load_before, "load_after": _load(), "wall_s": _time.perf_counter() - t0,
-        "command": command_line(args), "eps": args.eps,
+        "load_before": load_before,
+        "load_after": _load(),
+        "wall_s": _time.perf_counter() - t0,
+        "command": command_line(args),
+        "eps": args.eps,
     }
     (out / "tradeoff.json").write_text(json.dumps({**meta, "name": name}, indent=2))
     finish_report(rows, out, meta, name, args.budgets)
-    print(f"stb tradeoff: wrote {out / 'tradeoff.csv'}, {out / 'pareto.png'}, "
-          f"{out / 'report.md'}", file=sys.stderr)
+    print(
+        f"stb tradeoff: wrote {out / 'tradeoff.csv'}, {out / 'pareto.png'}, {out / 'report.md'}",
+        file=sys.stderr,
+    )
     return rows
 
 
 def finish_report(rows, out: Path, meta: dict, name: str, budgets) -> None:
-    plot_pareto(rows, out / "pareto.png",
-                f"{name}: {meta['width']}x{meta['height']}, {meta['fov_lights']} lights in view, "
-                f"{meta['renderer'].split('|')[0].strip()}, load {meta['load_before']}")
+    plot_pareto(
+        rows,
+        out / "pareto.png",
+        f"{name}: {meta['width']}x{meta['height']}, {meta['fov_lights']} lights in view, "
+        f"{meta['renderer'].split('|')[0].strip()}, load {meta['load_before']}",
+    )
     write_report(rows, out / "report.md", meta, budgets)
 
 
@@ -563,19 +643,42 @@ def report_only(args) -> None:
     meta = json.loads(meta_path.read_text()) if meta_path.is_file() else {}
     r0 = rows[0] if rows else {}
     meta = {
-        "scene": args.scene, "width": r0.get("width", 0), "height": r0.get("height", 0),
-        "fov_lights": r0.get("fov_lights", 0), "renderer": "?", "date": "?",
-        "load_before": "?", "load_after": "?", "wall_s": 0.0,
-        "command": command_line(args), "eps": args.eps, **meta,
+        "scene": args.scene,
+        "width": r0.get("width", 0),
+        "height": r0.get("height", 0),
+        "fov_lights": r0.get("fov_lights", 0),
+        "renderer": "?",
+        "date": "?",
+        "load_before": "?",
+        "load_after": "?",
+        "wall_s": 0.0,
+        "command": command_line(args),
+        "eps": args.eps,
+        **meta,
     }
-    finish_report(rows, out, meta, meta.get("name", str(r0.get("scene", args.scene))),
-                  args.budgets)
+    finish_report(rows, out, meta, meta.get("name", str(r0.get("scene", args.scene))), args.budgets)
     print(f"stb tradeoff: wrote {out / 'pareto.png'}, {out / 'report.md'}", file=sys.stderr)
 
 
-SWEEP_FIELDS = ["scene", "lights", "fov_lights", "method", "frame_ms", "frame_ms_min",
-                "frame_ms_max", "lighting_ms", "prepare_ms", "relmse", "flip", "dropped_median",
-                "list_entries", "frames", "width", "height", "load1"]
+SWEEP_FIELDS = [
+    "scene",
+    "lights",
+    "fov_lights",
+    "method",
+    "frame_ms",
+    "frame_ms_min",
+    "frame_ms_max",
+    "lighting_ms",
+    "prepare_ms",
+    "relmse",
+    "flip",
+    "dropped_median",
+    "list_entries",
+    "frames",
+    "width",
+    "height",
+    "load1",
+]
 
 
 def run_sweep(args) -> list[dict]:
@@ -593,8 +696,9 @@ def run_sweep(args) -> list[dict]:
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
     load_before, t0 = _load(), _time.perf_counter()
-    bar = tqdm(total=len(counts) * len(methods), unit="config", desc="sweep", disable=None,
-               file=sys.stderr)
+    bar = tqdm(
+        total=len(counts) * len(methods), unit="config", desc="sweep", disable=None, file=sys.stderr
+    )
     try:
         for n in counts:
             stage = generated_stage(kind, n, args.seed)
@@ -607,39 +711,58 @@ def run_sweep(args) -> list[dict]:
                     ref_img = run.images[0]
                     ref_disp = display_referred(ref_img)
                 st = run.stats[-1] if run.stats else {}
-                rows.append({
-                    "scene": kind, "lights": n, "fov_lights": int(st.get("fov_lights", 0)),
-                    "method": m, "frame_ms": round(_median(run.times), 3),
-                    "frame_ms_min": round(min(run.times), 3),
-                    "frame_ms_max": round(max(run.times), 3),
-                    "lighting_ms": round(_median(run.lighting), 3),
-                    "prepare_ms": round(_median(run.prepare), 3),
-                    "relmse": (relmse(run.images[0], ref_img, args.eps)
-                               if ref_img is not None else ""),
-                    "flip": (round(flip_ldr(display_referred(run.images[0]), ref_disp), 5)
-                             if ref_img is not None else ""),
-                    "dropped_median": float(np.median([s.get("dropped_lights", 0)
-                                                       for s in run.stats])),
-                    "list_entries": int(st.get("list_entries", 0)),
-                    "frames": len(run.times), "width": args.width, "height": args.height,
-                    "load1": round(os.getloadavg()[0], 2),
-                })
+                rows.append(
+                    {
+                        "scene": kind,
+                        "lights": n,
+                        "fov_lights": int(st.get("fov_lights", 0)),
+                        "method": m,
+                        "frame_ms": round(_median(run.times), 3),
+                        "frame_ms_min": round(min(run.times), 3),
+                        "frame_ms_max": round(max(run.times), 3),
+                        "lighting_ms": round(_median(run.lighting), 3),
+                        "prepare_ms": round(_median(run.prepare), 3),
+                        "relmse": (
+                            relmse(run.images[0], ref_img, args.eps) if ref_img is not None else ""
+                        ),
+                        "flip": (
+                            round(flip_ldr(display_referred(run.images[0]), ref_disp), 5)
+                            if ref_img is not None
+                            else ""
+                        ),
+                        "dropped_median": float(
+                            np.median([s.get("dropped_lights", 0) for s in run.stats])
+                        ),
+                        "list_entries": int(st.get("list_entries", 0)),
+                        "frames": len(run.times),
+                        "width": args.width,
+                        "height": args.height,
+                        "load1": round(os.getloadavg()[0], 2),
+                    }
+                )
                 write_csv(rows, out / "sweep.csv", SWEEP_FIELDS)
                 bar.update(1)
             pool.close()
     finally:
         bar.close()
     renderer = renderer_info(get_context())
-    plot_sweep(rows, out / "frame_time_vs_lights.png",
-               f"{kind} scene, {args.width}x{args.height}, {renderer.split('|')[0].strip()}, "
-               f"load {load_before}")
-    lines = [f"# Frame time vs light count ({kind} scene)", "",
-             f"- {args.width}x{args.height}, `{renderer}`; load average before {load_before}, "
-             f"after {_load()}; {_time.perf_counter() - t0:.0f} s",
-             "- median frame time (ms, profile mode, readback excluded); in brackets relMSE / "
-             "LDR-FLIP of one frame vs the reference (and light-tile pairs dropped)", "",
-             "| lights (in view) | " + " | ".join(methods) + " |",
-             "|---|" + "---|" * len(methods)]
+    plot_sweep(
+        rows,
+        out / "frame_time_vs_lights.png",
+        f"{kind} scene, {args.width}x{args.height}, {renderer.split('|')[0].strip()}, "
+        f"load {load_before}",
+    )
+    lines = [
+        f"# Frame time vs light count ({kind} scene)",
+        "",
+        f"- {args.width}x{args.height}, `{renderer}`; load average before {load_before}, "
+        f"after {_load()}; {_time.perf_counter() - t0:.0f} s",
+        "- median frame time (ms, profile mode, readback excluded); in brackets relMSE / "
+        "LDR-FLIP of one frame vs the reference (and light-tile pairs dropped)",
+        "",
+        "| lights (in view) | " + " | ".join(methods) + " |",
+        "|---|" + "---|" * len(methods),
+    ]
     for n in counts:
         cells = []
         for m in methods:
@@ -648,14 +771,19 @@ def run_sweep(args) -> list[dict]:
                 cells.append("")
                 continue
             extra = f", drops {r['dropped_median']:g}" if r["dropped_median"] else ""
-            err = (f" ({float(r['relmse']):.2g} / {float(r['flip']):.3f}{extra})"
-                   if r["relmse"] not in ("", None) and m != "reference" else "")
+            err = (
+                f" ({float(r['relmse']):.2g} / {float(r['flip']):.3f}{extra})"
+                if r["relmse"] not in ("", None) and m != "reference"
+                else ""
+            )
             cells.append(f"{float(r['frame_ms']):.0f}{err}")
         fov = next((r["fov_lights"] for r in rows if r["lights"] == n), n)
         lines.append(f"| {n} ({fov}) | " + " | ".join(cells) + " |")
     (out / "sweep.md").write_text("\n".join(lines) + "\n")
-    print(f"stb tradeoff: wrote {out / 'sweep.csv'}, {out / 'frame_time_vs_lights.png'}",
-          file=sys.stderr)
+    print(
+        f"stb tradeoff: wrote {out / 'sweep.csv'}, {out / 'frame_time_vs_lights.png'}",
+        file=sys.stderr,
+    )
     return rows
 
 
@@ -669,8 +797,13 @@ def plot_sweep(rows: list[dict], path: Path, title: str) -> None:
     for m in dict.fromkeys(r["method"] for r in rows):
         rs = sorted((r for r in rows if r["method"] == m), key=lambda r: r["fov_lights"])
         marker, color = STYLE.get(m, ("o", None))
-        ax.plot([r["fov_lights"] or r["lights"] for r in rs], [r["frame_ms"] for r in rs],
-                marker=marker, color=color, label=m)
+        ax.plot(
+            [r["fov_lights"] or r["lights"] for r in rs],
+            [r["frame_ms"] for r in rs],
+            marker=marker,
+            color=color,
+            label=m,
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("local lights in view")
@@ -723,21 +856,40 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="generator / renderer seed")
     p.add_argument("--quick", action="store_true", help="small grid (N 1,4; K 8,32; A 1,4)")
     p.add_argument("--methods", help="comma list to keep (reference always runs)")
-    p.add_argument("--frames", type=int, default=3,
-                   help="timed frames of deterministic methods (default 3)")
+    p.add_argument(
+        "--frames", type=int, default=3, help="timed frames of deterministic methods (default 3)"
+    )
     p.add_argument("--warmup", type=int, default=1, help="untimed frames first (default 1)")
-    p.add_argument("--max-seconds", type=float, default=60.0,
-                   help="stop timing a deterministic method after this long (>= 1 frame)")
-    p.add_argument("--temporal-frames", type=int, default=4,
-                   help="accumulated images per stb config for temporal instability")
+    p.add_argument(
+        "--max-seconds",
+        type=float,
+        default=60.0,
+        help="stop timing a deterministic method after this long (>= 1 frame)",
+    )
+    p.add_argument(
+        "--temporal-frames",
+        type=int,
+        default=4,
+        help="accumulated images per stb config for temporal instability",
+    )
     p.add_argument("--eps", type=float, default=1e-2, help="relMSE epsilon (default 1e-2)")
-    p.add_argument("--hdr-flip", action=argparse.BooleanOptionalAction, default=True,
-                   help="also HDR-FLIP on scene-linear (default on)")
-    p.add_argument("--tile-caps", type=_tile_caps,
-                   help="tiled caps of the grid, e.g. 16,64,none (default 16,64,none)")
+    p.add_argument(
+        "--hdr-flip",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also HDR-FLIP on scene-linear (default on)",
+    )
+    p.add_argument(
+        "--tile-caps",
+        type=_tile_caps,
+        help="tiled caps of the grid, e.g. 16,64,none (default 16,64,none)",
+    )
     p.add_argument("--budgets", type=_budgets, help="frame-time budgets (ms) for the report")
-    p.add_argument("--report-only", action="store_true",
-                   help="redo the plot and report.md from --out's tradeoff.csv")
+    p.add_argument(
+        "--report-only",
+        action="store_true",
+        help="redo the plot and report.md from --out's tradeoff.csv",
+    )
     p.add_argument("--sweep-lights", help="frame time vs light count instead, e.g. 50,500,5000")
     p.add_argument(
         "--sweep-methods", help=f"methods of the sweep (default {','.join(SWEEP_METHODS)})"

@@ -71,24 +71,48 @@ def add_parser(sub) -> None:
         description=__doc__.split("\n\n")[1] if __doc__ else None,
     )
     p.add_argument("paths", nargs="+", metavar="PATH", help="USD file or directory to walk")
-    p.add_argument("--library-root", metavar="DIR",
-                   help="the library's root directory: asset paths (references, IES "
-                   "files, textures) must resolve inside it; every PATH must lie inside "
-                   "it (default: each PATH directory, or a file's directory)")
+    p.add_argument(
+        "--library-root",
+        metavar="DIR",
+        help="the library's root directory: asset paths (references, IES "
+        "files, textures) must resolve inside it; every PATH must lie inside "
+        "it (default: each PATH directory, or a file's directory)",
+    )
     p.add_argument("--json", metavar="FILE", help="write the JSON report")
     p.add_argument("--html", metavar="FILE", help="write an HTML report (one row per asset)")
-    p.add_argument("--thumbnails", action="store_true",
-                   help="render a small reference-lit thumbnail per asset into the HTML")
-    p.add_argument("--jobs", "-j", type=int, default=1, metavar="N",
-                   help="worker processes (default 1; 0 = in this process, no crash "
-                   "isolation)")
-    p.add_argument("--rules", nargs="+", metavar="RULE",
-                   help="rules to run: default, stb, usd, usd:all, rule ids, validator "
-                   "names or UsdValidation keywords (default: default)")
-    p.add_argument("--fail-on", choices=("error", "warning"), default="error",
-                   help="lowest severity that makes the exit code 1 (default error)")
-    p.add_argument("--timeout", type=float, default=None, metavar="S",
-                   help="seconds per asset before its worker is killed (default 300)")
+    p.add_argument(
+        "--thumbnails",
+        action="store_true",
+        help="render a small reference-lit thumbnail per asset into the HTML",
+    )
+    p.add_argument(
+        "--jobs",
+        "-j",
+        type=int,
+        default=1,
+        metavar="N",
+        help="worker processes (default 1; 0 = in this process, no crash isolation)",
+    )
+    p.add_argument(
+        "--rules",
+        nargs="+",
+        metavar="RULE",
+        help="rules to run: default, stb, usd, usd:all, rule ids, validator "
+        "names or UsdValidation keywords (default: default)",
+    )
+    p.add_argument(
+        "--fail-on",
+        choices=("error", "warning"),
+        default="error",
+        help="lowest severity that makes the exit code 1 (default error)",
+    )
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds per asset before its worker is killed (default 300)",
+    )
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar or table")
     p.set_defaults(func=main)
 
@@ -103,8 +127,10 @@ def main(args: argparse.Namespace) -> int:
         _check_output(args.html, "HTML report")
         tasks = collect_inputs(args.paths, args.library_root)
         if not tasks:
-            raise CliError("no USD files (.usd, .usda, .usdc, .usdz) found in "
-                           + ", ".join(f"'{p}'" for p in args.paths))
+            raise CliError(
+                "no USD files (.usd, .usda, .usdc, .usdz) found in "
+                + ", ".join(f"'{p}'" for p in args.paths)
+            )
         from ..validate import findings as fnd
         from ..validate.runner import Selection, SelectionError
 
@@ -125,8 +151,14 @@ def main(args: argparse.Namespace) -> int:
     if not args.quiet:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(tasks), unit="asset", desc="stb validate", file=sys.stderr,
-                   disable=None, dynamic_ncols=True)
+        bar = tqdm(
+            total=len(tasks),
+            unit="asset",
+            desc="stb validate",
+            file=sys.stderr,
+            disable=None,
+            dynamic_ncols=True,
+        )
 
     def tick(_rep) -> None:
         if bar is not None:
@@ -140,8 +172,9 @@ def main(args: argparse.Namespace) -> int:
                 reports.append(rep)
                 tick(rep)
         else:
-            reports = run_parallel(tasks, args.jobs, args.rules, args.thumbnails, timeout,
-                                   on_done=tick)
+            reports = run_parallel(
+                tasks, args.jobs, args.rules, args.thumbnails, timeout, on_done=tick
+            )
     except WorkerStartError as exc:
         return fail(str(exc))
     finally:
@@ -151,8 +184,9 @@ def main(args: argparse.Namespace) -> int:
     summ = report.summary(reports, wall, args.jobs)
     try:
         if args.json:
-            report.write_json(args.json, report.document(reports, wall, args.jobs,
-                                                         args.fail_on, sel.validators))
+            report.write_json(
+                args.json, report.document(reports, wall, args.jobs, args.fail_on, sel.validators)
+            )
         if args.html:
             report.write_html(args.html, reports, summ, args.fail_on, args.thumbnails)
     except OSError as exc:

@@ -92,19 +92,28 @@ def _legend_spec(name: str) -> tuple[np.ndarray, str, str, str]:
     if name == "lightcount":
         top = np.log2(LIGHTCOUNT_SCALE_MAX)
         counts = np.concatenate([np.zeros(16), np.exp2(np.linspace(0.0, top, 240))])
-        return (lightcount_heatmap(counts[None, :])[0], "0",
-                f">={LIGHTCOUNT_SCALE_MAX}", "lights in range, log2 (black = 0)")
+        return (
+            lightcount_heatmap(counts[None, :])[0],
+            "0",
+            f">={LIGHTCOUNT_SCALE_MAX}",
+            "lights in range, log2 (black = 0)",
+        )
     if name == "shadowterms":
         g = np.linspace(0.0, 1.0, 256, dtype=np.float32)
         return np.repeat(g[:, None], 3, 1), "0", "1", "shadow x cone x IES term (0 = dark)"
     if name == "bigtile":
         # dark grey = empty slot, then brightness 0.25..1 = weight within the tile
         g = np.concatenate([[0.06] * 16, np.linspace(0.25, 1.0, 240)]).astype(np.float32)
-        return (np.repeat(g[:, None], 3, 1), "min", "max",
-                "slot weight in its tile, log2 (dark = empty; hue = light)")
+        return (
+            np.repeat(g[:, None], 3, 1),
+            "min",
+            "max",
+            "slot weight in its tile, log2 (dark = empty; hue = light)",
+        )
     if name == "smalltile":
-        c = np.concatenate([np.zeros((16, 3), np.float32),
-                            np.repeat(hash_colors(np.arange(15)), 16, axis=0)])
+        c = np.concatenate(
+            [np.zeros((16, 3), np.float32), np.repeat(hash_colors(np.arange(15)), 16, axis=0)]
+        )
         return c, "empty", "light hash", "colour = hash of the light index"
     g = np.linspace(0.0, 1.0, 256, dtype=np.float32)
     return np.repeat(g[:, None], 3, 1), "0", "1", name
@@ -172,7 +181,11 @@ def write_debug_aov(
         counts = np.asarray(pixels, dtype=np.float32)
         out.append(
             write_image(
-                exr, counts, metadata=meta, pixel_type="float", channel_names=("Y",),
+                exr,
+                counts,
+                metadata=meta,
+                pixel_type="float",
+                channel_names=("Y",),
                 colorspace="data",
             )
         )

@@ -242,9 +242,7 @@ class _ScopedTextures:
     def __contains__(self, name: object) -> bool:
         return isinstance(name, str) and name in self._s._reads and name in self._s._b.textures
 
-    def get(
-        self, name: str, default: moderngl.Texture | None = None
-    ) -> moderngl.Texture | None:
+    def get(self, name: str, default: moderngl.Texture | None = None) -> moderngl.Texture | None:
         return self[name] if name in self else default
 
 

@@ -205,9 +205,7 @@ def shader_library(ctx: moderngl.Context) -> ShaderLibrary:
     return lib
 
 
-def set_uniform(
-    prog: moderngl.Program | moderngl.ComputeShader, name: str, value: object
-) -> None:
+def set_uniform(prog: moderngl.Program | moderngl.ComputeShader, name: str, value: object) -> None:
     """Set a uniform if the (optimised) program still has it: numpy arrays are
     written as bytes (float arrays as float32), anything else as ``.value``."""
     try:

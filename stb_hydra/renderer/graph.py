@@ -149,8 +149,9 @@ class CompiledGraph:
         """The graph as text: passes in order with reads/writes, then resources."""
         lines = ["passes (execution order):"]
         for i, p in enumerate(self.passes):
-            flags = [f for f, on in (("final-only", p.only_final), ("side-effect", p.side_effect))
-                     if on]
+            flags = [
+                f for f, on in (("final-only", p.only_final), ("side-effect", p.side_effect)) if on
+            ]
             lines.append(f"  {i + 1:2d}. {p.name}" + (f"  [{', '.join(flags)}]" if flags else ""))
             reads, writes = p.io()
             if reads:
@@ -249,8 +250,9 @@ def _cull(ordered: list[Pass], deps: dict[str, set[str]]) -> tuple[list[Pass], l
     for p in reversed(ordered):
         if p.name in needed:
             needed |= deps[p.name]
-    return [p for p in ordered if p.name in needed], [p.name for p in ordered
-                                                      if p.name not in needed]
+    return [p for p in ordered if p.name in needed], [
+        p.name for p in ordered if p.name not in needed
+    ]
 
 
 def _check_formats(passes: Sequence[Pass], resources: dict[str, Resource]) -> None:
@@ -312,4 +314,3 @@ __all__ = [
     "Tex",
     "compile_graph",
 ]
-

@@ -63,13 +63,16 @@ def exposure_scale(
         why = f"is {s:g}"
     if warn is not None:
         vals = []
-        for name, label in (("exposure", "exposure"), ("fStop", "fStop"),
-                            ("exposure:time", "time"), ("exposure:iso", "ISO"),
-                            ("exposure:responsivity", "responsivity")):
+        for name, label in (
+            ("exposure", "exposure"),
+            ("fStop", "fStop"),
+            ("exposure:time", "time"),
+            ("exposure:iso", "ISO"),
+            ("exposure:responsivity", "responsivity"),
+        ):
             attr = prim.GetAttribute(name)
             if attr and attr.HasAuthoredValue():
                 vals.append(f"{label} {attr.Get(time)}")
         detail = f" ({', '.join(vals)})" if vals else ""
-        warn(f"camera <{prim.GetPath()}>: exposure scale {why}{detail}; using 1 "
-             "(no exposure)")
+        warn(f"camera <{prim.GetPath()}>: exposure scale {why}{detail}; using 1 (no exposure)")
     return 1.0

@@ -77,9 +77,7 @@ def triangulate(
     return corners, face
 
 
-def _primvar(
-    prim: Usd.Prim, name: str, time: Usd.TimeCode
-) -> tuple[np.ndarray | None, str | None]:
+def _primvar(prim: Usd.Prim, name: str, time: Usd.TimeCode) -> tuple[np.ndarray | None, str | None]:
     """(flattened values, interpolation) of an authored primvar, else (None, None)."""
     pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
     if not pv or not pv.HasAuthoredValue():

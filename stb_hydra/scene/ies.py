@@ -67,8 +67,13 @@ _RANGE_EPS = 1.0e-7
 #: angles span at most 90 degrees plus this fudge (0.1 rad).
 _HEMISPHERE_FUDGE_DEG = math.degrees(0.1)
 
-_VERSIONS = {1986: "LM-63-1986", 1991: "LM-63-1991", 1995: "LM-63-1995",
-             2002: "LM-63-2002", 2019: "LM-63-2019"}
+_VERSIONS = {
+    1986: "LM-63-1986",
+    1991: "LM-63-1991",
+    1995: "LM-63-1995",
+    2002: "LM-63-2002",
+    2019: "LM-63-2019",
+}
 _LINE_SPLIT = re.compile(r"\r\n|\r|\n")
 _TOKEN_SPLIT = re.compile(r"[\s,]+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
@@ -132,8 +137,9 @@ class IesProfile:
 
     @cached_property
     def _grid(self) -> _Grid:
-        return _unfold(self.photometric_type, self.horizontal_angles,
-                       self.vertical_angles, self.candela)
+        return _unfold(
+            self.photometric_type, self.horizontal_angles, self.vertical_angles, self.candela
+        )
 
     def sample(self, theta: npt.ArrayLike, phi: npt.ArrayLike) -> np.ndarray:
         """Intensity (cd, multiplier and ballast applied) towards ``(theta, phi)``.
@@ -422,13 +428,28 @@ def _parse(data: bytes | str, name: str) -> IesProfile:
         warnings.append(f"{len(t.tokens) - t.pos} extra token(s) after the candela table ignored")
 
     return IesProfile(
-        name=name, version=version, keywords=keywords, labels=labels, tilt=tilt,
-        tilt_geometry=tilt_geometry, tilt_angles=tilt_angles, tilt_factors=tilt_factors,
-        n_lamps=lum.n_lamps, lumens_per_lamp=lum.lumens, multiplier=lum.multiplier,
-        photometric_type=lum.ptype, units_type=lum.units, width=lum.width,
-        length=lum.length, height=lum.height, ballast_factor=lum.ballast,
-        file_generation_type=lum.generation, input_watts=lum.watts,
-        vertical_angles=vertical, horizontal_angles=horizontal, candela_raw=candela_raw,
+        name=name,
+        version=version,
+        keywords=keywords,
+        labels=labels,
+        tilt=tilt,
+        tilt_geometry=tilt_geometry,
+        tilt_angles=tilt_angles,
+        tilt_factors=tilt_factors,
+        n_lamps=lum.n_lamps,
+        lumens_per_lamp=lum.lumens,
+        multiplier=lum.multiplier,
+        photometric_type=lum.ptype,
+        units_type=lum.units,
+        width=lum.width,
+        length=lum.length,
+        height=lum.height,
+        ballast_factor=lum.ballast,
+        file_generation_type=lum.generation,
+        input_watts=lum.watts,
+        vertical_angles=vertical,
+        horizontal_angles=horizontal,
+        candela_raw=candela_raw,
         warnings=warnings,
     )
 
@@ -444,9 +465,7 @@ def _decode_lines(data: bytes | str, name: str) -> list[str]:
     return _LINE_SPLIT.split(text)
 
 
-def _parse_header(
-    lines: list[str], warnings: list[str]
-) -> tuple[str, dict[str, str], list[str]]:
+def _parse_header(lines: list[str], warnings: list[str]) -> tuple[str, dict[str, str], list[str]]:
     """(version, keywords, labels) from the lines before TILT=. Repeated keywords and
     ``[MORE]`` continue the previous value on a new line; other lines are labels."""
     header = [ln for ln in lines if ln.strip()]
@@ -542,8 +561,21 @@ def _parse_luminaire(t: _Tokens, warnings: list[str]) -> _Luminaire:
         warnings.append(f"units type {units} is neither 1 (feet) nor 2 (metres)")
     if multiplier < 0.0 or ballast < 0.0:
         raise t.error(f"negative candela multiplier ({multiplier:g}) or ballast ({ballast:g})")
-    return _Luminaire(n_lamps, lumens, multiplier, n_v, n_h, ptype, units, width, length,
-                      height, ballast, generation, watts)
+    return _Luminaire(
+        n_lamps,
+        lumens,
+        multiplier,
+        n_v,
+        n_h,
+        ptype,
+        units,
+        width,
+        length,
+        height,
+        ballast,
+        generation,
+        watts,
+    )
 
 
 def _check_angles(
@@ -559,8 +591,10 @@ def _check_angles(
         if horizontal[-1] - horizontal[0] > 360.0 + _CLASSIFY_TOL:
             raise t.error("Type C horizontal angles span more than 360 degrees")
         if _symmetry(ptype, horizontal) == "nonstandard":
-            warnings.append(f"horizontal angles {horizontal[0]:g}..{horizontal[-1]:g} are no "
-                            "LM-63 symmetry; interpolated periodically")
+            warnings.append(
+                f"horizontal angles {horizontal[0]:g}..{horizontal[-1]:g} are no "
+                "LM-63 symmetry; interpolated periodically"
+            )
     else:
         kind = "Type A" if ptype == TYPE_A else "Type B"
         lat, lon = (vertical, horizontal) if ptype == TYPE_A else (horizontal, vertical)

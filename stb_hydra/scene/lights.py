@@ -224,8 +224,6 @@ def load_ies_cached(path: str) -> IesProfile:
     return prof
 
 
-
-
 def ies_theta(theta: np.ndarray, angle_scale: float) -> np.ndarray:
     """UsdLux ``shaping:ies:angleScale`` remap of the light-space polar angle
     (radians from -Z). Results outside [0, pi] mean "no emission"."""
@@ -517,9 +515,7 @@ def _check_emission_inputs(
     return ok
 
 
-def _light_rgb(
-    lp: LightPrim, a: _Attrs, ctx: LightReadContext, color: Any, ok: bool
-) -> np.ndarray:
+def _light_rgb(lp: LightPrim, a: _Attrs, ctx: LightReadContext, color: Any, ok: bool) -> np.ndarray:
     """Linear RGB factor: ``inputs:color`` (negatives clamped) times the blackbody colour
     when ``enableColorTemperature`` is on; zero for a non-finite colour."""
     rgb = _vec3(color) if _finite(color) else np.zeros(3)
@@ -673,9 +669,7 @@ def _set_intensity(
     return True
 
 
-def _read_distant_angle(
-    lp: LightPrim, a: _Attrs, ctx: LightReadContext, normalize: bool
-) -> float:
+def _read_distant_angle(lp: LightPrim, a: _Attrs, ctx: LightReadContext, normalize: bool) -> float:
     """Set ``lp.angle`` (degrees); return the radiance -> illuminance factor
     ``pi sin^2(theta_max)`` (1 for a zero angle; divided by the disc's solid-angle
     measure when normalised)."""
@@ -799,8 +793,9 @@ def influence_range(peak_cd: float | np.ndarray, exposure_scale: float = 1.0):
     same lights in range as a bright one (the display image does not depend on the
     unit scale). Clamped to [MIN_LIGHT_RANGE_M, MAX_LIGHT_RANGE_M]; vectorised."""
     e = np.maximum(np.asarray(peak_cd, dtype=np.float64), 0.0) * float(exposure_scale)
-    r = np.clip(np.sqrt(e / limits.LIGHT_CUTOFF_LUX), limits.MIN_LIGHT_RANGE_M,
-                limits.MAX_LIGHT_RANGE_M)
+    r = np.clip(
+        np.sqrt(e / limits.LIGHT_CUTOFF_LUX), limits.MIN_LIGHT_RANGE_M, limits.MAX_LIGHT_RANGE_M
+    )
     return float(r) if r.ndim == 0 else r
 
 

@@ -62,8 +62,7 @@ def piece_bounds(chess: Path) -> tuple[np.ndarray, float]:
     if not stage:
         raise FileNotFoundError(chess)
     root = stage.GetDefaultPrim()
-    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default", "render"],
-                              useExtentsHint=True)
+    cache = UsdGeom.BBoxCache(Usd.TimeCode.Default(), ["default", "render"], useExtentsHint=True)
     xf = UsdGeom.XformCache()
     boxes = []
     board_top = 0.0
@@ -80,8 +79,9 @@ def piece_bounds(chess: Path) -> tuple[np.ndarray, float]:
             pi = UsdGeom.PointInstancer(prim)
             protos = pi.GetPrototypesRel().GetTargets()
             ids = pi.GetProtoIndicesAttr().Get()
-            mats = pi.ComputeInstanceTransformsAtTime(Usd.TimeCode.Default(),
-                                                      Usd.TimeCode.Default())
+            mats = pi.ComputeInstanceTransformsAtTime(
+                Usd.TimeCode.Default(), Usd.TimeCode.Default()
+            )
             world = xf.GetLocalToWorldTransform(prim)
             for k, m in zip(ids, mats):
                 hint = UsdGeom.ModelAPI(stage.GetPrimAtPath(protos[k])).GetExtentsHint()
@@ -161,32 +161,59 @@ def chess_scene_usda(
             for name, (c, rough) in looks.items():
                 w.preview_material(name, f"/World/Looks/{name}", diffuse=c, roughness=rough)
         chess_ref = asset_path(chess, anchor_dir)
-        with w.prim("Xform", "ChessSet", meta=[f"prepend references = {chess_ref}"],
-                    doc="The OpenChessSet, unchanged (board top at "
-                        f"y = {board_top:.4f} m), plus fallback looks for usd-core."):
+        with w.prim(
+            "Xform",
+            "ChessSet",
+            meta=[f"prepend references = {chess_ref}"],
+            doc="The OpenChessSet, unchanged (board top at "
+            f"y = {board_top:.4f} m), plus fallback looks for usd-core.",
+        ):
             if fallback_materials:
                 for group, (mat, _, _) in FALLBACK_LOOKS.items():
-                    with w.prim(None, group, specifier="over",
-                                meta=['prepend apiSchemas = ["MaterialBindingAPI"]']):
+                    with w.prim(
+                        None,
+                        group,
+                        specifier="over",
+                        meta=['prepend apiSchemas = ["MaterialBindingAPI"]'],
+                    ):
                         w.line(f"rel material:binding = </World/Looks/{mat}> (")
                         w.line('    bindMaterialAs = "strongerThanDescendants"')
                         w.line(")")
         with w.prim("Xform", "Room"):
-            top = merge([box((-0.6, -0.04, -0.6), (0.6, -0.0005, 0.6))]
-                        + [box((sx * 0.55 - 0.03, -0.75, sz * 0.55 - 0.03),
-                               (sx * 0.55 + 0.03, -0.04, sz * 0.55 + 0.03), bottom=False)
-                           for sx in (-1, 1) for sz in (-1, 1)])
-            w.mesh("Table", top, material="/World/Looks/Table",
-                   doc="1.2 m table, top 0.5 mm under the board's underside.")
+            top = merge(
+                [box((-0.6, -0.04, -0.6), (0.6, -0.0005, 0.6))]
+                + [
+                    box(
+                        (sx * 0.55 - 0.03, -0.75, sz * 0.55 - 0.03),
+                        (sx * 0.55 + 0.03, -0.04, sz * 0.55 + 0.03),
+                        bottom=False,
+                    )
+                    for sx in (-1, 1)
+                    for sz in (-1, 1)
+                ]
+            )
+            w.mesh(
+                "Table",
+                top,
+                material="/World/Looks/Table",
+                doc="1.2 m table, top 0.5 mm under the board's underside.",
+            )
             w.mesh("Floor", plane(6.0, 6.0, y=-0.75), material="/World/Looks/Floor")
         with w.prim("Xform", "Lights", doc=f"{n} SphereLights, shadowed (static maps)."):
             pad, p2 = w.pad, w.pad + "    "
             parts = []
             for i in range(n):
-                col = (f"{p2}float inputs:colorTemperature = {kelvin[i]:.0f}\n"
-                       f"{p2}bool inputs:enableColorTemperature = 1\n") if use_kelvin[i] else (
-                       f"{p2}color3f inputs:color = "
-                       f"({rgb[i, 0]:.3f}, {rgb[i, 1]:.3f}, {rgb[i, 2]:.3f})\n")
+                col = (
+                    (
+                        f"{p2}float inputs:colorTemperature = {kelvin[i]:.0f}\n"
+                        f"{p2}bool inputs:enableColorTemperature = 1\n"
+                    )
+                    if use_kelvin[i]
+                    else (
+                        f"{p2}color3f inputs:color = "
+                        f"({rgb[i, 0]:.3f}, {rgb[i, 1]:.3f}, {rgb[i, 2]:.3f})\n"
+                    )
+                )
                 parts.append(
                     f'{pad}def SphereLight "L{i:05d}" (\n{p2}prepend apiSchemas = ["ShadowAPI"]\n'
                     f"{pad})\n{pad}{{\n{col}"
@@ -199,16 +226,19 @@ def chess_scene_usda(
                 )
             w.raw("".join(parts).rstrip("\n"))
     w.camera(
-        "Camera", eye=(-0.28, 0.62, -0.78), target=(0.0, 0.03, 0.0), focal_length=35.0,
-        clipping=(0.01, 20.0), exposure=exposure,
+        "Camera",
+        eye=(-0.28, 0.62, -0.78),
+        target=(0.0, 0.03, 0.0),
+        focal_length=35.0,
+        clipping=(0.01, 20.0),
+        exposure=exposure,
         comment=f"Looks at the board from White's side. exposure {exposure:g}: an 18 % card "
         f"under ~{e_mean:.0f} lx -> 0.18.",
     )
     return w.text()
 
 
-def build_chess_stage(n_lights: int = 256, seed: int = 0, path: str | Path | None = None,
-                      **kwargs):
+def build_chess_stage(n_lights: int = 256, seed: int = 0, path: str | Path | None = None, **kwargs):
     """``Usd.Stage`` of the chess scene: in memory when ``path`` is None, else written."""
     from pxr import Usd
 
@@ -220,28 +250,52 @@ def build_chess_stage(n_lights: int = 256, seed: int = 0, path: str | Path | Non
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     ap.add_argument("out", type=Path, help="output .usda or .usdc")
     ap.add_argument("--lights", type=int, default=256)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--chess", type=Path, default=None,
-                    help="chess_set.usda to reference (default: $STB_SHARED's, else "
-                    "../shared's next to the checkout)")
-    ap.add_argument("--total-lumens", type=float, default=300.0,
-                    help="flux shared by all lights")
-    ap.add_argument("--radius", type=float, nargs=2, default=(0.002, 0.02), metavar=("MIN", "MAX"),
-                    help="light radius range (m), log-uniform")
-    ap.add_argument("--height", type=float, nargs=2, default=(0.02, 0.2), metavar=("MIN", "MAX"),
-                    help="height range above the board top (m)")
-    ap.add_argument("--no-fallback-materials", action="store_true",
-                    help="do not bind the UsdPreviewSurface fallbacks over the MaterialX looks")
+    ap.add_argument(
+        "--chess",
+        type=Path,
+        default=None,
+        help="chess_set.usda to reference (default: $STB_SHARED's, else "
+        "../shared's next to the checkout)",
+    )
+    ap.add_argument("--total-lumens", type=float, default=300.0, help="flux shared by all lights")
+    ap.add_argument(
+        "--radius",
+        type=float,
+        nargs=2,
+        default=(0.002, 0.02),
+        metavar=("MIN", "MAX"),
+        help="light radius range (m), log-uniform",
+    )
+    ap.add_argument(
+        "--height",
+        type=float,
+        nargs=2,
+        default=(0.02, 0.2),
+        metavar=("MIN", "MAX"),
+        help="height range above the board top (m)",
+    )
+    ap.add_argument(
+        "--no-fallback-materials",
+        action="store_true",
+        help="do not bind the UsdPreviewSurface fallbacks over the MaterialX looks",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
         text = chess_scene_usda(
-            args.lights, args.seed, args.chess, args.total_lumens, tuple(args.radius),
-            tuple(args.height), not args.no_fallback_materials,
+            args.lights,
+            args.seed,
+            args.chess,
+            args.total_lumens,
+            tuple(args.radius),
+            tuple(args.height),
+            not args.no_fallback_materials,
             anchor_dir=args.out.resolve().parent,
         )
     except (FileNotFoundError, RuntimeError) as e:

@@ -459,7 +459,7 @@ class UsdaWriter:
             self.attr("float exposure", num(exposure, 3))
             self.attr("float focalLength", num(focal_length, 3))
             self.attr("float horizontalAperture", num(h_aperture, 3))
-            self.attr('token projection', '"perspective"')
+            self.attr("token projection", '"perspective"')
             self.attr("float verticalAperture", num(v_aperture, 3))
             m = look_at(eye, target)
             rows = ", ".join(vec(r, 6) for r in m)

@@ -222,36 +222,68 @@ def lights_scene_usda(
     )
     with w.prim("Xform", "World", meta=['kind = "assembly"']):
         with w.prim("Scope", "Looks"):
-            w.preview_material("Ground", "/World/Looks/Ground", diffuse=(0.35, 0.35, 0.35),
-                               roughness=0.8)
-            w.preview_material("Occluder", "/World/Looks/Occluder", diffuse=(0.55, 0.5, 0.45),
-                               roughness=0.6)
+            w.preview_material(
+                "Ground", "/World/Looks/Ground", diffuse=(0.35, 0.35, 0.35), roughness=0.8
+            )
+            w.preview_material(
+                "Occluder", "/World/Looks/Occluder", diffuse=(0.55, 0.5, 0.45), roughness=0.6
+            )
         with w.prim("Xform", "Geometry"):
-            w.mesh("Ground", plane(size * 1.1, size * 1.1), material="/World/Looks/Ground",
-                   doc=f"{size * 1.1:g} m square ground plane (normal +Y).", nd=3)
+            w.mesh(
+                "Ground",
+                plane(size * 1.1, size * 1.1),
+                material="/World/Looks/Ground",
+                doc=f"{size * 1.1:g} m square ground plane (normal +Y).",
+                nd=3,
+            )
             occ = merge(box(b[:3], b[3:], bottom=False) for b in boxes)
-            w.mesh("Occluders", occ, material="/World/Looks/Occluder",
-                   doc=f"{len(boxes)} axis-aligned boxes, 0.5-3.5 m tall.", nd=3)
+            w.mesh(
+                "Occluders",
+                occ,
+                material="/World/Looks/Occluder",
+                doc=f"{len(boxes)} axis-aligned boxes, 0.5-3.5 m tall.",
+                nd=3,
+            )
         with w.prim("Xform", "Lights"):
             pad = w.pad
             parts: list[str] = []
             for i in range(n):
                 parts.append(
                     _light_text(
-                        pad, i, tname[i], nits[i], radius[i], rect_w[i], rect_h[i],
-                        use_kelvin[i], kelvin[i], rgb[i], shadowed[i], dynamic[i], cone[i],
-                        softness[i], tilt[i], yaw[i], ies_names[ies_pick[i]],
-                        ies_assets[ies_pick[i]], pos[i],
+                        pad,
+                        i,
+                        tname[i],
+                        nits[i],
+                        radius[i],
+                        rect_w[i],
+                        rect_h[i],
+                        use_kelvin[i],
+                        kelvin[i],
+                        rgb[i],
+                        shadowed[i],
+                        dynamic[i],
+                        cone[i],
+                        softness[i],
+                        tilt[i],
+                        yaw[i],
+                        ies_names[ies_pick[i]],
+                        ies_assets[ies_pick[i]],
+                        pos[i],
                         _orbit(pos[i], orbit_r[i], orbit_phase[i], orbit_dir[i], bob[i], tf)
-                        if moving[i] else None,
+                        if moving[i]
+                        else None,
                         sample_frames,
                     )
                 )
             w.raw("".join(parts).rstrip("\n"))
     eye = (-0.55 * size, 0.3 * size + 1.5, 0.75 * size)
     w.camera(
-        "Camera", eye=eye, target=(0.0, 0.0, -0.05 * size), focal_length=24.0,
-        clipping=(0.1, max(200.0, 3.0 * size)), exposure=exposure,
+        "Camera",
+        eye=eye,
+        target=(0.0, 0.0, -0.05 * size),
+        focal_length=24.0,
+        clipping=(0.1, max(200.0, 3.0 * size)),
+        exposure=exposure,
         comment=f"exposure from the mean ground illuminance ~{e_mean:.1f} lx "
         "(an 18 % card under it -> 0.18 scene-linear).",
     )
@@ -270,8 +302,29 @@ def _f(x: float, nd: int = 3) -> str:
     return f"{x:.{nd}f}"
 
 
-def _light_text(pad, i, t, nits, r, rw, rh, use_k, k, rgb, shadow, dyn, cone, soft, tilt, yaw,
-                ies_name, ies_asset, pos, path, frames) -> str:
+def _light_text(
+    pad,
+    i,
+    t,
+    nits,
+    r,
+    rw,
+    rh,
+    use_k,
+    k,
+    rgb,
+    shadow,
+    dyn,
+    cone,
+    soft,
+    tilt,
+    yaw,
+    ies_name,
+    ies_asset,
+    pos,
+    path,
+    frames,
+) -> str:
     token = TYPE_TOKENS[t]
     schemas = (["ShapingAPI"] if t in ("spot", "ies") else []) + ["ShadowAPI"]
     if dyn:
@@ -279,12 +332,16 @@ def _light_text(pad, i, t, nits, r, rw, rh, use_k, k, rgb, shadow, dyn, cone, so
     p2 = pad + "    "
     out = [
         f'{pad}def {token} "L{i:06d}" (\n{p2}prepend apiSchemas = '
-        + "[" + ", ".join(f'"{s}"' for s in schemas) + "]\n"
+        + "["
+        + ", ".join(f'"{s}"' for s in schemas)
+        + "]\n"
         + f"{pad})\n{pad}{{\n"
     ]
     if use_k:
-        out.append(f"{p2}float inputs:colorTemperature = {k:.0f}\n"
-                   f"{p2}bool inputs:enableColorTemperature = 1\n")
+        out.append(
+            f"{p2}float inputs:colorTemperature = {k:.0f}\n"
+            f"{p2}bool inputs:enableColorTemperature = 1\n"
+        )
     else:
         out.append(f"{p2}color3f inputs:color = ({rgb[0]:.3f}, {rgb[1]:.3f}, {rgb[2]:.3f})\n")
     out.append(f"{p2}float inputs:intensity = {nits:.1f}\n")
@@ -293,12 +350,16 @@ def _light_text(pad, i, t, nits, r, rw, rh, use_k, k, rgb, shadow, dyn, cone, so
     else:
         out.append(f"{p2}float inputs:radius = {r:.3f}\n")
     if t == "spot":
-        out.append(f"{p2}float inputs:shaping:cone:angle = {cone:.1f}\n"
-                   f"{p2}float inputs:shaping:cone:softness = {soft:.2f}\n")
+        out.append(
+            f"{p2}float inputs:shaping:cone:angle = {cone:.1f}\n"
+            f"{p2}float inputs:shaping:cone:softness = {soft:.2f}\n"
+        )
     elif t == "ies":
-        out.append(f"{p2}float inputs:shaping:cone:angle = {IES_PROFILES[ies_name]:.0f}\n"
-                   f"{p2}asset inputs:shaping:ies:file = {ies_asset}\n"
-                   f"{p2}bool inputs:shaping:ies:normalize = 1\n")
+        out.append(
+            f"{p2}float inputs:shaping:cone:angle = {IES_PROFILES[ies_name]:.0f}\n"
+            f"{p2}asset inputs:shaping:ies:file = {ies_asset}\n"
+            f"{p2}bool inputs:shaping:ies:normalize = 1\n"
+        )
     out.append(f"{p2}bool inputs:shadow:enable = {1 if shadow else 0}\n")
     if dyn:
         out.append(f'{p2}uniform token stb:shadow:update = "dynamic"\n')
@@ -336,8 +397,7 @@ def build_lights_stage(
     if path is None:
         return stage_from_text(lights_scene_usda(n_lights, seed, animated, **kwargs))
     path = Path(path)
-    text = lights_scene_usda(n_lights, seed, animated, anchor_dir=path.resolve().parent,
-                             **kwargs)
+    text = lights_scene_usda(n_lights, seed, animated, anchor_dir=path.resolve().parent, **kwargs)
     save(text, path)
     return Usd.Stage.Open(str(path))
 
@@ -351,36 +411,74 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lights", type=int, default=1000, help="number of lights N")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--animated", type=int, default=0, help="M lights on time-sampled paths")
-    ap.add_argument("--types", default=",".join(ALL_TYPES),
-                    help="comma-separated subset of " + ",".join(ALL_TYPES))
-    ap.add_argument("--shadow-fraction", type=float, default=0.25,
-                    help="fraction of lights with shadows enabled")
-    ap.add_argument("--dynamic-fraction", type=float, default=0.25,
-                    help="fraction of the shadowed lights with dynamic shadow maps")
-    ap.add_argument("--size", type=float, default=None,
-                    help="ground side in metres (default: ~1 light per 8 m^2, >= 20 m)")
+    ap.add_argument(
+        "--types",
+        default=",".join(ALL_TYPES),
+        help="comma-separated subset of " + ",".join(ALL_TYPES),
+    )
+    ap.add_argument(
+        "--shadow-fraction",
+        type=float,
+        default=0.25,
+        help="fraction of lights with shadows enabled",
+    )
+    ap.add_argument(
+        "--dynamic-fraction",
+        type=float,
+        default=0.25,
+        help="fraction of the shadowed lights with dynamic shadow maps",
+    )
+    ap.add_argument(
+        "--size",
+        type=float,
+        default=None,
+        help="ground side in metres (default: ~1 light per 8 m^2, >= 20 m)",
+    )
     ap.add_argument("--frames", type=int, default=48, help="animation length (24 fps)")
-    ap.add_argument("--sample-step", type=int, default=2,
-                    help="frames between translate samples of animated lights")
-    ap.add_argument("--lumens", type=float, nargs=2, default=(100.0, 2000.0),
-                    metavar=("MIN", "MAX"), help="log-uniform flux range per light")
-    ap.add_argument("--ies-dir", type=Path, default=None,
-                    help="folder of the IES profiles (default: the checkout's usd_scenes/ies)")
+    ap.add_argument(
+        "--sample-step",
+        type=int,
+        default=2,
+        help="frames between translate samples of animated lights",
+    )
+    ap.add_argument(
+        "--lumens",
+        type=float,
+        nargs=2,
+        default=(100.0, 2000.0),
+        metavar=("MIN", "MAX"),
+        help="log-uniform flux range per light",
+    )
+    ap.add_argument(
+        "--ies-dir",
+        type=Path,
+        default=None,
+        help="folder of the IES profiles (default: the checkout's usd_scenes/ies)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
         text = lights_scene_usda(
-            args.lights, args.seed, args.animated, types=args.types,
-            shadow_fraction=args.shadow_fraction, dynamic_fraction=args.dynamic_fraction,
-            size=args.size, frames=args.frames, sample_step=args.sample_step,
-            lumens=tuple(args.lumens), anchor_dir=args.out.resolve().parent,
+            args.lights,
+            args.seed,
+            args.animated,
+            types=args.types,
+            shadow_fraction=args.shadow_fraction,
+            dynamic_fraction=args.dynamic_fraction,
+            size=args.size,
+            frames=args.frames,
+            sample_step=args.sample_step,
+            lumens=tuple(args.lumens),
+            anchor_dir=args.out.resolve().parent,
             ies_dir=args.ies_dir,
         )
     except (ValueError, FileNotFoundError) as e:
         ap.error(str(e))
     save(text, args.out)
-    print(f"wrote {args.out}: {args.lights} lights, {args.animated} animated, "
-          f"{args.out.stat().st_size / 1e6:.1f} MB in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"wrote {args.out}: {args.lights} lights, {args.animated} animated, "
+        f"{args.out.stat().st_size / 1e6:.1f} MB in {time.perf_counter() - t0:.2f} s"
+    )
     return 0
 
 

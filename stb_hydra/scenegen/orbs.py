@@ -73,8 +73,10 @@ def orbs_scene_usda(
         raise ValueError("need at least one orb and two frames")
     rng = np.random.default_rng(seed)
     R = float(arena_radius)
-    gates = [(R - 1.0) * np.array([math.cos(a), 0.0, -math.sin(a)])
-             for a in np.radians([0.0, 90.0, 180.0, 270.0])]
+    gates = [
+        (R - 1.0) * np.array([math.cos(a), 0.0, -math.sin(a)])
+        for a in np.radians([0.0, 90.0, 180.0, 270.0])
+    ]
     spawn = spawn_frames(n_orbs, frames, min(initial, n_orbs))
     gate = rng.integers(0, 4, n_orbs)
     orbit_r = np.empty(n_orbs)
@@ -84,8 +86,10 @@ def orbs_scene_usda(
     bob_amp = rng.uniform(0.05, 0.4, n_orbs)
     bob_w = rng.uniform(0.05, 0.15, n_orbs)
     phase = rng.uniform(0, 2 * math.pi, n_orbs)
-    pillars = [(0.55 * R * math.cos(a), -0.55 * R * math.sin(a))
-               for a in np.radians(np.arange(22.5, 360.0, 45.0))]
+    pillars = [
+        (0.55 * R * math.cos(a), -0.55 * R * math.sin(a))
+        for a in np.radians(np.arange(22.5, 360.0, 45.0))
+    ]
 
     def draw(i: int) -> None:
         # ~1.5-5 m/s on a 3.5 .. R-2 m orbit, 1.5-3 s to fly in from the gate.
@@ -142,34 +146,72 @@ def orbs_scene_usda(
         with w.prim("Scope", "Looks"):
             w.preview_material("Floor", "/World/Looks/Floor", (0.28, 0.27, 0.3), roughness=0.7)
             w.preview_material("Stone", "/World/Looks/Stone", (0.45, 0.43, 0.4), roughness=0.8)
-            w.preview_material("Gate", "/World/Looks/Gate", (0.2, 0.1, 0.18), roughness=0.5,
-                               emissive=(1.5, 0.3, 1.0))
+            w.preview_material(
+                "Gate",
+                "/World/Looks/Gate",
+                (0.2, 0.1, 0.18),
+                roughness=0.5,
+                emissive=(1.5, 0.3, 1.0),
+            )
         with w.prim("Xform", "Arena"):
             w.mesh("Floor", plane(2 * R + 6, 2 * R + 6), material="/World/Looks/Floor", nd=3)
             segs = 32
             wall = []
             for k in range(segs):
                 a = 360.0 * k / segs
-                wall.append(box((-R * math.pi / segs - 0.05, 0.0, R), (R * math.pi / segs + 0.05,
-                                2.6, R + 0.6), bottom=False).transformed(yaw_deg=a))
-            w.mesh("RingWall", merge(wall), material="/World/Looks/Stone", nd=3,
-                   doc=f"{segs} wall segments on a {R:g} m radius, 2.6 m tall.")
-            pillars = [cylinder(0.6, 0.0, 4.0, 16, center=(0.55 * R * math.cos(a),
-                                                          -0.55 * R * math.sin(a)), bottom=False)
-                       for a in np.radians(np.arange(22.5, 360.0, 45.0))]
+                wall.append(
+                    box(
+                        (-R * math.pi / segs - 0.05, 0.0, R),
+                        (R * math.pi / segs + 0.05, 2.6, R + 0.6),
+                        bottom=False,
+                    ).transformed(yaw_deg=a)
+                )
+            w.mesh(
+                "RingWall",
+                merge(wall),
+                material="/World/Looks/Stone",
+                nd=3,
+                doc=f"{segs} wall segments on a {R:g} m radius, 2.6 m tall.",
+            )
+            pillars = [
+                cylinder(
+                    0.6,
+                    0.0,
+                    4.0,
+                    16,
+                    center=(0.55 * R * math.cos(a), -0.55 * R * math.sin(a)),
+                    bottom=False,
+                )
+                for a in np.radians(np.arange(22.5, 360.0, 45.0))
+            ]
             w.mesh("Pillars", merge(pillars), material="/World/Looks/Stone", nd=3)
-            dais = merge([cylinder(2.5, 0.0, 0.4, 24, bottom=False),
-                          box((-0.3, 0.4, -0.3), (0.3, 2.2, 0.3), bottom=False)])
-            w.mesh("Dais", dais, material="/World/Looks/Stone", nd=3,
-                   doc="Central dais with the 'player' post the orbs circle.")
+            dais = merge(
+                [
+                    cylinder(2.5, 0.0, 0.4, 24, bottom=False),
+                    box((-0.3, 0.4, -0.3), (0.3, 2.2, 0.3), bottom=False),
+                ]
+            )
+            w.mesh(
+                "Dais",
+                dais,
+                material="/World/Looks/Stone",
+                nd=3,
+                doc="Central dais with the 'player' post the orbs circle.",
+            )
             # Arch depth (local Z) along the radius: yaw 90 + gate angle.
             gate_mesh = merge(
                 arch(2.4, 2.0, 0.8, 0.4).transformed(
-                    translate=tuple(g * (R - 0.2) / (R - 1.0)), yaw_deg=90.0 + a)
+                    translate=tuple(g * (R - 0.2) / (R - 1.0)), yaw_deg=90.0 + a
+                )
                 for a, g in zip([0.0, 90.0, 180.0, 270.0], gates)
             )
-            w.mesh("Gates", gate_mesh, material="/World/Looks/Gate", nd=3,
-                   doc="Four spawn gates on the ring wall, faintly emissive.")
+            w.mesh(
+                "Gates",
+                gate_mesh,
+                material="/World/Looks/Gate",
+                nd=3,
+                doc="Four spawn gates on the ring wall, faintly emissive.",
+            )
         with w.prim("Xform", "Lights"):
             with w.prim("DomeLight", "NightSky", doc="Dim uniform night sky, ~0.5 lx."):
                 w.attr("color3f inputs:color", "(0.25, 0.3, 0.55)")
@@ -179,12 +221,18 @@ def orbs_scene_usda(
                     a = 2 * math.pi * (k + 0.5) / max(torches, 1)
                     p = (R - 0.01) * np.array([math.cos(a), 0.0, -math.sin(a)])
                     yaw = math.degrees(a) - 90.0  # prefab +Z -> towards the centre
-                    with w.prim("Xform", f"Torch_{k + 1:02d}",
-                                meta=["instanceable = true", f"prepend references = {torch_ref}"]):
-                        w.xform(translate=(p[0], 1.9, p[2]), rotate_xyz=(0, round(yaw, 3), 0),
-                                nd=3)
-            with w.prim("Xform", "Orbs", doc=f"{n_orbs} enemy_orb instances; visibility "
-                        "switches invisible -> inherited at each orb's spawn frame."):
+                    with w.prim(
+                        "Xform",
+                        f"Torch_{k + 1:02d}",
+                        meta=["instanceable = true", f"prepend references = {torch_ref}"],
+                    ):
+                        w.xform(translate=(p[0], 1.9, p[2]), rotate_xyz=(0, round(yaw, 3), 0), nd=3)
+            with w.prim(
+                "Xform",
+                "Orbs",
+                doc=f"{n_orbs} enemy_orb instances; visibility "
+                "switches invisible -> inherited at each orb's spawn frame.",
+            ):
                 for i in range(n_orbs):
                     s = int(spawn[i])
                     fs = sorted({1, s, frames, *range(s, frames + 1, max(1, sample_step))})
@@ -192,24 +240,32 @@ def orbs_scene_usda(
                     meta = ["instanceable = true", f"prepend references = {orb_ref}"]
                     with w.prim("Xform", f"Orb_{i:04d}", meta=meta):
                         if s > 1:
-                            w.time_samples("token visibility",
-                                           [(1, '"invisible"'), (s, '"inherited"')])
+                            w.time_samples(
+                                "token visibility", [(1, '"invisible"'), (s, '"inherited"')]
+                            )
                         w.time_samples(
                             "double3 xformOp:translate",
-                            [(f, f"({q[0]:.3f}, {q[1]:.3f}, {q[2]:.3f})")
-                             for f, q in zip(fs, np.round(p, 3) + 0.0)],  # + 0.0: no "-0.000"
+                            [
+                                (f, f"({q[0]:.3f}, {q[1]:.3f}, {q[2]:.3f})")
+                                for f, q in zip(fs, np.round(p, 3) + 0.0)
+                            ],  # + 0.0: no "-0.000"
                         )
                         w.attr("uniform token[] xformOpOrder", '["xformOp:translate"]')
     w.camera(
-        "Camera", eye=(0.0, 0.95 * R, 1.45 * R), target=(0.0, 0.5, 0.0), focal_length=24.0,
-        clipping=(0.1, 10 * R), exposure=exposure,
+        "Camera",
+        eye=(0.0, 0.95 * R, 1.45 * R),
+        target=(0.0, 0.5, 0.0),
+        focal_length=24.0,
+        clipping=(0.1, 10 * R),
+        exposure=exposure,
         comment=f"exposure {exposure:g}: for the mean floor illuminance with half the orbs alive.",
     )
     return w.text()
 
 
-def build_orbs_stage(n_orbs: int = 200, frames: int = 240, seed: int = 0,
-                     path: str | Path | None = None, **kwargs):
+def build_orbs_stage(
+    n_orbs: int = 200, frames: int = 240, seed: int = 0, path: str | Path | None = None, **kwargs
+):
     """``Usd.Stage`` of the orbs scene: in memory when ``path`` is None, else written."""
     from pxr import Usd
 
@@ -221,8 +277,9 @@ def build_orbs_stage(n_orbs: int = 200, frames: int = 240, seed: int = 0,
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
     ap.add_argument("out", type=Path, help="output .usda or .usdc")
     ap.add_argument("--orbs", type=int, default=200, help="orbs alive at the end (N)")
     ap.add_argument("--frames", type=int, default=240, help="clip length F at 24 fps")
@@ -231,21 +288,34 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--arena-radius", type=float, default=15.0, help="metres")
     ap.add_argument("--sample-step", type=int, default=4, help="frames between path samples")
     ap.add_argument("--initial", type=int, default=4, help="orbs alive at frame 1")
-    ap.add_argument("--prefab-dir", type=Path, default=None,
-                    help="folder of enemy_orb.usda / wall_torch.usda "
-                    "(default: the checkout's usd_scenes/prefabs)")
+    ap.add_argument(
+        "--prefab-dir",
+        type=Path,
+        default=None,
+        help="folder of enemy_orb.usda / wall_torch.usda "
+        "(default: the checkout's usd_scenes/prefabs)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
-        text = orbs_scene_usda(args.orbs, args.frames, args.seed, args.torches,
-                               args.arena_radius, args.sample_step, args.initial,
-                               anchor_dir=args.out.resolve().parent,
-                               prefab_dir=args.prefab_dir)
+        text = orbs_scene_usda(
+            args.orbs,
+            args.frames,
+            args.seed,
+            args.torches,
+            args.arena_radius,
+            args.sample_step,
+            args.initial,
+            anchor_dir=args.out.resolve().parent,
+            prefab_dir=args.prefab_dir,
+        )
     except (ValueError, FileNotFoundError) as e:
         ap.error(str(e))
     save(text, args.out)
-    print(f"wrote {args.out}: {args.orbs} orbs over {args.frames} frames "
-          f"in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"wrote {args.out}: {args.orbs} orbs over {args.frames} frames "
+        f"in {time.perf_counter() - t0:.2f} s"
+    )
     return 0
 
 

@@ -154,8 +154,9 @@ def look_at(
     return m
 
 
-def perspective(tan_x: float, tan_y: float, off_x: float, off_y: float, near: float,
-                 far: float) -> np.ndarray:
+def perspective(
+    tan_x: float, tan_y: float, off_x: float, off_y: float, near: float, far: float
+) -> np.ndarray:
     """Row-vector projection for an off-axis frustum (view looks down -Z)."""
     l, r = (off_x - tan_x), (off_x + tan_x)
     b, t = (off_y - tan_y), (off_y + tan_y)

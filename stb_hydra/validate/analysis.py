@@ -57,8 +57,7 @@ class StageAnalysis:
 
     def local_lights(self) -> list[LightRecord]:
         """Valid local (sampled, shadow-mapped) lights."""
-        return [r for r in self.lights if r.light.type in prims.LOCAL_LIGHT_TYPES
-                and r.light.valid]
+        return [r for r in self.lights if r.light.type in prims.LOCAL_LIGHT_TYPES and r.light.valid]
 
     def prefabs(self) -> dict[str, list[LightRecord]]:
         """Prefab path -> its aggregated local lights."""

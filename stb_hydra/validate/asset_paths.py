@@ -67,8 +67,10 @@ def _prims_authoring(layer: Sdf.Layer) -> dict[str, str]:
                         out.setdefault(item.assetPath, prim)
         elif path.IsPropertyPath():
             spec = layer.GetAttributeAtPath(path)
-            if spec is None or spec.typeName not in (Sdf.ValueTypeNames.Asset,
-                                                     Sdf.ValueTypeNames.AssetArray):
+            if spec is None or spec.typeName not in (
+                Sdf.ValueTypeNames.Asset,
+                Sdf.ValueTypeNames.AssetArray,
+            ):
                 return
             prim = str(path.GetPrimPath().StripAllVariantSelections())
             vals = [spec.default] if spec.HasDefaultValue() else []
@@ -124,8 +126,9 @@ def scan_asset_paths(path: str, library_root: str) -> tuple[list[Finding], bool]
                 from .findings import RUNNER_RULES
 
                 r = RUNNER_RULES["unreadable"]
-                return [Finding("unreadable", r.severity, "/", f"cannot read layer: {err}",
-                                r.hint)], False
+                return [
+                    Finding("unreadable", r.severity, "/", f"cannot read layer: {err}", r.hint)
+                ], False
             continue
         subs, refs, pays = UsdUtils.ExtractExternalReferences(layer.identifier)
         where = None
@@ -138,14 +141,20 @@ def scan_asset_paths(path: str, library_root: str) -> tuple[list[Finding], bool]
                     if where is None:
                         where = _prims_authoring(layer)
                     prim = "/" if kind == "sublayer" else where.get(authored, "/")
-                    out.append(finding(
-                        "asset_path_unsafe", prim,
-                        f"{kind if kind != 'reference' else 'asset'} path @{authored}@ in "
-                        f"layer '{_rel(layer, root)}' {problem}; stage not opened",
-                    ))
+                    out.append(
+                        finding(
+                            "asset_path_unsafe",
+                            prim,
+                            f"{kind if kind != 'reference' else 'asset'} path @{authored}@ in "
+                            f"layer '{_rel(layer, root)}' {problem}; stage not opened",
+                        )
+                    )
                     continue
-                if (kind in ("sublayer", "payload") or anchored.lower().endswith(
-                        LAYER_EXTENSIONS) or anchored.endswith("]")) and _exists(anchored):
+                if (
+                    kind in ("sublayer", "payload")
+                    or anchored.lower().endswith(LAYER_EXTENSIONS)
+                    or anchored.endswith("]")
+                ) and _exists(anchored):
                     todo.append(anchored)
     return out, True
 

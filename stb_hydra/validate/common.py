@@ -11,12 +11,14 @@ from pxr import Usd
 from .findings import RULES, Finding
 
 
-def finding(rule: str, prim: str, message: str, hint: str | None = None,
-            severity: str | None = None) -> Finding:
+def finding(
+    rule: str, prim: str, message: str, hint: str | None = None, severity: str | None = None
+) -> Finding:
     """A finding of an stb rule with the table's severity/hint unless overridden."""
     r = RULES[rule]
-    return Finding(rule, severity or r.severity, prim, message,
-                   r.hint if hint is None else hint, r.validator)
+    return Finding(
+        rule, severity or r.severity, prim, message, r.hint if hint is None else hint, r.validator
+    )
 
 
 def authored_values(attr: Usd.Attribute) -> list[tuple[float | None, object]]:
@@ -34,7 +36,7 @@ def authored_values(attr: Usd.Attribute) -> list[tuple[float | None, object]]:
 
 
 def fmt_times(times: Iterable[float | None]) -> str:
-    """"default", "time 59", "default, times 46-58, 60-63" (integer runs collapsed)."""
+    """ "default", "time 59", "default, times 46-58, 60-63" (integer runs collapsed)."""
     times = list(times)
     ts = sorted({t for t in times if t is not None})
     runs: list[str] = []

@@ -54,80 +54,164 @@ RULES: dict[str, Rule] = {
     r.id: r
     for r in (
         # -- LightValues (prim validator on UsdLuxLightAPI prims) --
-        _r("intensity_invalid", ERROR, "LightValues",
-           "inputs:intensity is non-finite or negative (any authored time)",
-           "author a finite intensity >= 0 (nits)"),
-        _r("exposure_invalid", ERROR, "LightValues",
-           "inputs:exposure is non-finite or beyond +-MAX_ABS_EXPOSURE stops",
-           "keep exposure within +-30 stops; scale inputs:intensity instead"),
-        _r("color_invalid", ERROR, "LightValues",
-           "inputs:color has a non-finite or negative component, or colorTemperature "
-           "is non-finite",
-           "author a colour with finite components >= 0"),
-        _r("shape_invalid", ERROR, "LightValues",
-           "radius / width / height / length / angle is non-finite or negative",
-           "author finite sizes >= 0 (stage units)"),
-        _r("cone_angle_invalid", ERROR, "LightValues",
-           "inputs:shaping:cone:angle outside (0, 180] degrees",
-           "use a half-angle in (0, 180]; 180 (or no ShapingAPI) means no cone"),
-        _r("focus_invalid", WARNING, "LightValues",
-           "inputs:shaping:focus is negative or non-finite (renderers ignore it)",
-           "author focus >= 0, or remove it"),
-        _r("legacy_attribute", WARNING, "LightValues",
-           "pre-21.02 un-namespaced light attribute (no 'inputs:' prefix)",
-           "rename to the 'inputs:' name given in the message"),
+        _r(
+            "intensity_invalid",
+            ERROR,
+            "LightValues",
+            "inputs:intensity is non-finite or negative (any authored time)",
+            "author a finite intensity >= 0 (nits)",
+        ),
+        _r(
+            "exposure_invalid",
+            ERROR,
+            "LightValues",
+            "inputs:exposure is non-finite or beyond +-MAX_ABS_EXPOSURE stops",
+            "keep exposure within +-30 stops; scale inputs:intensity instead",
+        ),
+        _r(
+            "color_invalid",
+            ERROR,
+            "LightValues",
+            "inputs:color has a non-finite or negative component, or colorTemperature "
+            "is non-finite",
+            "author a colour with finite components >= 0",
+        ),
+        _r(
+            "shape_invalid",
+            ERROR,
+            "LightValues",
+            "radius / width / height / length / angle is non-finite or negative",
+            "author finite sizes >= 0 (stage units)",
+        ),
+        _r(
+            "cone_angle_invalid",
+            ERROR,
+            "LightValues",
+            "inputs:shaping:cone:angle outside (0, 180] degrees",
+            "use a half-angle in (0, 180]; 180 (or no ShapingAPI) means no cone",
+        ),
+        _r(
+            "focus_invalid",
+            WARNING,
+            "LightValues",
+            "inputs:shaping:focus is negative or non-finite (renderers ignore it)",
+            "author focus >= 0, or remove it",
+        ),
+        _r(
+            "legacy_attribute",
+            WARNING,
+            "LightValues",
+            "pre-21.02 un-namespaced light attribute (no 'inputs:' prefix)",
+            "rename to the 'inputs:' name given in the message",
+        ),
         # -- IesProfile --
-        _r("ies_missing", ERROR, "IesProfile",
-           "inputs:shaping:ies:file does not resolve (checked at every authored time)",
-           "ship the .ies file inside the library and fix the relative path"),
-        _r("ies_malformed", ERROR, "IesProfile",
-           "the IES file does not parse (the parser's message is quoted)",
-           "re-export the profile as LM-63-2002 from the manufacturer's data"),
-        _r("ies_zero_power", ERROR, "IesProfile",
-           "the IES profile emits nothing (all candela values 0)",
-           "use a profile with non-zero candela values"),
-        _r("ies_angle_scale", WARNING, "IesProfile",
-           "ies:angleScale inverts a downlight (negative scale anchors at the zenith) or "
-           "is a value in degrees rather than a scale factor",
-           "use 0 (no rescale) or a positive factor near 1; rotate the light to aim it"),
+        _r(
+            "ies_missing",
+            ERROR,
+            "IesProfile",
+            "inputs:shaping:ies:file does not resolve (checked at every authored time)",
+            "ship the .ies file inside the library and fix the relative path",
+        ),
+        _r(
+            "ies_malformed",
+            ERROR,
+            "IesProfile",
+            "the IES file does not parse (the parser's message is quoted)",
+            "re-export the profile as LM-63-2002 from the manufacturer's data",
+        ),
+        _r(
+            "ies_zero_power",
+            ERROR,
+            "IesProfile",
+            "the IES profile emits nothing (all candela values 0)",
+            "use a profile with non-zero candela values",
+        ),
+        _r(
+            "ies_angle_scale",
+            WARNING,
+            "IesProfile",
+            "ies:angleScale inverts a downlight (negative scale anchors at the zenith) or "
+            "is a value in degrees rather than a scale factor",
+            "use 0 (no rescale) or a positive factor near 1; rotate the light to aim it",
+        ),
         # -- Photometry (stage validator) --
-        _r("flux_light", WARNING, "Photometry",
-           "a local light's luminous flux is outside the plausible band",
-           "check intensity units (nits), exposure, radius and metersPerUnit"),
-        _r("flux_prefab", WARNING, "Photometry",
-           "a prefab's total luminous flux is implausibly high",
-           "check intensity units and metersPerUnit of the prefab's lights"),
+        _r(
+            "flux_light",
+            WARNING,
+            "Photometry",
+            "a local light's luminous flux is outside the plausible band",
+            "check intensity units (nits), exposure, radius and metersPerUnit",
+        ),
+        _r(
+            "flux_prefab",
+            WARNING,
+            "Photometry",
+            "a prefab's total luminous flux is implausibly high",
+            "check intensity units and metersPerUnit of the prefab's lights",
+        ),
         # -- ShadowBudget (stage validator) --
-        _r("shadow_count", WARNING, "ShadowBudget",
-           "too many shadowed local lights in one prefab",
-           "set inputs:shadow:enable = false on fill lights"),
-        _r("shadow_dynamic", INFO, "ShadowBudget",
-           "a light opts into dynamic shadows (stb:shadow:update = dynamic)",
-           "keep dynamic shadows for lights near moving geometry only"),
-        _r("shadow_dynamic_count", WARNING, "ShadowBudget",
-           "too many dynamic-shadow opt-ins in one prefab",
-           "use stb:shadow:update = static for lights that do not need moving shadows"),
-        _r("shadow_atlas", WARNING, "ShadowBudget",
-           "the prefab's estimated shadow-atlas area at the reference view is too large",
-           "author a tighter stb:range or disable shadows on minor lights"),
+        _r(
+            "shadow_count",
+            WARNING,
+            "ShadowBudget",
+            "too many shadowed local lights in one prefab",
+            "set inputs:shadow:enable = false on fill lights",
+        ),
+        _r(
+            "shadow_dynamic",
+            INFO,
+            "ShadowBudget",
+            "a light opts into dynamic shadows (stb:shadow:update = dynamic)",
+            "keep dynamic shadows for lights near moving geometry only",
+        ),
+        _r(
+            "shadow_dynamic_count",
+            WARNING,
+            "ShadowBudget",
+            "too many dynamic-shadow opt-ins in one prefab",
+            "use stb:shadow:update = static for lights that do not need moving shadows",
+        ),
+        _r(
+            "shadow_atlas",
+            WARNING,
+            "ShadowBudget",
+            "the prefab's estimated shadow-atlas area at the reference view is too large",
+            "author a tighter stb:range or disable shadows on minor lights",
+        ),
         # -- StbNoiseRisk (stage validator) --
-        _r("stb_overlap", WARNING, "StbNoiseRisk",
-           "more lights overlap at a surface point than a 16-slot big tile represents well",
-           "author smaller stb:range values, merge nearby lights, or drop fill lights"),
+        _r(
+            "stb_overlap",
+            WARNING,
+            "StbNoiseRisk",
+            "more lights overlap at a surface point than a 16-slot big tile represents well",
+            "author smaller stb:range values, merge nearby lights, or drop fill lights",
+        ),
         # -- StageUnits (stage validator) --
-        _r("units_missing", ERROR, "StageUnits",
-           "the root layer does not author metersPerUnit and/or upAxis",
-           "author metersPerUnit and upAxis in the layer's metadata"),
-        _r("units_mismatch", WARNING, "StageUnits",
-           "a referenced / payloaded / sublayered layer declares other units or up axis "
-           "than the stage that uses it",
-           "author the same metersPerUnit/upAxis, or compensate with a scale/rotate on "
-           "the referencing prim"),
+        _r(
+            "units_missing",
+            ERROR,
+            "StageUnits",
+            "the root layer does not author metersPerUnit and/or upAxis",
+            "author metersPerUnit and upAxis in the layer's metadata",
+        ),
+        _r(
+            "units_mismatch",
+            WARNING,
+            "StageUnits",
+            "a referenced / payloaded / sublayered layer declares other units or up axis "
+            "than the stage that uses it",
+            "author the same metersPerUnit/upAxis, or compensate with a scale/rotate on "
+            "the referencing prim",
+        ),
         # -- AssetPaths (stage validator; also run on the raw layers before composing) --
-        _r("asset_path_unsafe", ERROR, "AssetPaths",
-           "an asset path is absolute, a URL/expression, or escapes the library root; "
-           "the stage is not opened",
-           "use relative paths to files inside the library"),
+        _r(
+            "asset_path_unsafe",
+            ERROR,
+            "AssetPaths",
+            "an asset path is absolute, a URL/expression, or escapes the library root; "
+            "the stage is not opened",
+            "use relative paths to files inside the library",
+        ),
     )
 }
 
@@ -135,14 +219,30 @@ RULES: dict[str, Rule] = {
 RUNNER_RULES: dict[str, Rule] = {
     r.id: r
     for r in (
-        _r("crash", ERROR, "", "validating the asset crashed the worker (segfault, Tf "
-           "error, exception) or timed out", "open the asset in usdview; report the log"),
-        _r("unreadable", ERROR, "", "the file is not a readable USD layer",
-           "check the file format and permissions"),
-        _r("thumbnail", INFO, "", "the --thumbnails render failed (validation is unaffected)",
-           "see the message; thumbnails need stb_hydra.api and an OpenGL context"),
+        _r(
+            "crash",
+            ERROR,
+            "",
+            "validating the asset crashed the worker (segfault, Tf error, exception) or timed out",
+            "open the asset in usdview; report the log",
+        ),
+        _r(
+            "unreadable",
+            ERROR,
+            "",
+            "the file is not a readable USD layer",
+            "check the file format and permissions",
+        ),
+        _r(
+            "thumbnail",
+            INFO,
+            "",
+            "the --thumbnails render failed (validation is unaffected)",
+            "see the message; thumbnails need stb_hydra.api and an OpenGL context",
+        ),
     )
 }
+
 
 @dataclass
 class Finding:

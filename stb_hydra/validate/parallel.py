@@ -36,8 +36,9 @@ class WorkerStartError(RuntimeError):
     """Workers cannot start (broken environment); one-line message with their stderr."""
 
 
-def _worker_main(conn: Connection, log_path: str, rules: list[str] | None,
-                 thumbnails: bool) -> None:
+def _worker_main(
+    conn: Connection, log_path: str, rules: list[str] | None, thumbnails: bool
+) -> None:
     """Worker loop: ``(path, root)`` in, report dict out; ``None`` ends it."""
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(fd, 2)  # C++ diagnostics and Python tracebacks of this worker
@@ -148,8 +149,10 @@ class _Pool:
             for w in self._wait():
                 self._serve(w)
             self._reap_timeouts()
-            if not self.pending and all(w.task < 0 for w in self.workers) and any(
-                r is None for r in self.results
+            if (
+                not self.pending
+                and all(w.task < 0 for w in self.workers)
+                and any(r is None for r in self.results)
             ):
                 break  # defensive: nothing in flight yet results missing
 
@@ -158,8 +161,9 @@ class _Pool:
         from .runner import crash_report
 
         return [
-            r if r is not None else crash_report(self.tasks[i][0], self.tasks[i][1],
-                                                 "not validated")
+            r
+            if r is not None
+            else crash_report(self.tasks[i][0], self.tasks[i][1], "not validated")
             for i, r in enumerate(self.results)
         ]
 
@@ -191,8 +195,12 @@ class _Pool:
         self.serial += 1
         parent, child = self.ctx.Pipe()
         log = os.path.join(self.logdir, f"worker{self.serial}.log")
-        p = self.ctx.Process(target=_worker_main, args=(child, log, self.rules, self.thumbnails),
-                             name=f"stb-validate-{self.serial}", daemon=True)
+        p = self.ctx.Process(
+            target=_worker_main,
+            args=(child, log, self.rules, self.thumbnails),
+            name=f"stb-validate-{self.serial}",
+            daemon=True,
+        )
         p.start()
         child.close()
         return _Worker(p, parent, log)
@@ -221,8 +229,9 @@ class _Pool:
         if w.task >= 0:
             path, root = self.tasks[w.task]
             tail = _log_tail(w.log, w.log_offset)
-            msg = f"worker {why} while validating this asset" + (f"; stderr: {tail}" if tail
-                                                                 else "")
+            msg = f"worker {why} while validating this asset" + (
+                f"; stderr: {tail}" if tail else ""
+            )
             self._finish(w.task, crash_report(path, root, msg, time.monotonic() - w.started))
             w.task = -1
         try:
@@ -239,8 +248,9 @@ class _Pool:
         for w in self.workers:
             waitables[w.conn] = w
             waitables[w.proc.sentinel] = w
-        deadline = min((w.started + self.timeout_s for w in self.workers if w.task >= 0),
-                       default=None)
+        deadline = min(
+            (w.started + self.timeout_s for w in self.workers if w.task >= 0), default=None
+        )
         wait_s = None if deadline is None else max(0.0, deadline - time.monotonic())
         ready = wait(list(waitables), timeout=wait_s)
         out: dict[int, _Worker] = {}

@@ -76,9 +76,16 @@ def _task(short: str, kind: str, body: Callable) -> Callable:
             found = body(obj)
         except Exception as exc:  # noqa: BLE001 - a rule bug must surface as a finding
             where = str(obj.GetPath()) if kind == "prim" else "/"
-            found = [Finding("crash", ERROR, where,
-                             f"validator {full_name(short)} raised {type(exc).__name__}: {exc}",
-                             "report this as a bug with the asset attached", full_name(short))]
+            found = [
+                Finding(
+                    "crash",
+                    ERROR,
+                    where,
+                    f"validator {full_name(short)} raised {type(exc).__name__}: {exc}",
+                    "report this as a bug with the asset attached",
+                    full_name(short),
+                )
+            ]
         return [to_error(stage, f) for f in found]
 
     if kind == "prim":

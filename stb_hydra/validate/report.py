@@ -41,8 +41,13 @@ def summary(reports: Sequence[AssetReport], wall_s: float, jobs: int) -> dict:
     }
 
 
-def document(reports: Sequence[AssetReport], wall_s: float, jobs: int, fail_on: str,
-             validators: Sequence[str]) -> dict:
+def document(
+    reports: Sequence[AssetReport],
+    wall_s: float,
+    jobs: int,
+    fail_on: str,
+    validators: Sequence[str],
+) -> dict:
     """The ``--json`` document (thumbnails are left out: see ``--html``)."""
     from pxr import Usd
 
@@ -81,8 +86,9 @@ def _rel(r: AssetReport) -> str:
         return r.path
 
 
-def print_console(reports: Sequence[AssetReport], summ: dict, fail_on: str,
-                  max_rows: int = 60, file=None) -> None:
+def print_console(
+    reports: Sequence[AssetReport], summ: dict, fail_on: str, max_rows: int = 60, file=None
+) -> None:
     """Summary table of the assets with findings, then the findings themselves."""
     from rich.console import Console
     from rich.table import Table
@@ -91,8 +97,13 @@ def print_console(reports: Sequence[AssetReport], summ: dict, fail_on: str,
     con = Console(file=out, width=None if out.isatty() else 200, highlight=False)
     bad = [r for r in reports if r.findings]
     bad.sort(key=lambda r: (-r.worst(), _rel(r)))
-    colour = {"crash": "magenta", "error": "red", "warning": "yellow", "ok": "green",
-              "info": "blue"}
+    colour = {
+        "crash": "magenta",
+        "error": "red",
+        "warning": "yellow",
+        "ok": "green",
+        "info": "blue",
+    }
     if bad:
         t = Table(title="stb validate: assets with findings", show_lines=False)
         for col in ("asset", "status", "errors", "warnings", "info", "rules"):
@@ -101,8 +112,11 @@ def print_console(reports: Sequence[AssetReport], summ: dict, fail_on: str,
             c = Counter(f.severity for f in r.findings)
             rules = Counter(f.rule for f in r.findings)
             t.add_row(
-                _rel(r), f"[{colour.get(r.status, 'white')}]{r.status}[/]",
-                str(c.get("error", 0)), str(c.get("warning", 0)), str(c.get("info", 0)),
+                _rel(r),
+                f"[{colour.get(r.status, 'white')}]{r.status}[/]",
+                str(c.get("error", 0)),
+                str(c.get("warning", 0)),
+                str(c.get("info", 0)),
                 ", ".join(f"{k}" + (f" x{v}" if v > 1 else "") for k, v in rules.most_common(4)),
             )
         con.print(t)
@@ -119,9 +133,12 @@ def print_console(reports: Sequence[AssetReport], summ: dict, fail_on: str,
                 if shown >= max_rows * 2:
                     break
                 shown += 1
-                con.print(f"  [{colour[f.severity]}]{f.severity:7}[/] {f.rule}  <{f.prim}>  "
-                          f"{f.message}" + (f" [dim](fix: {f.hint})[/]" if f.hint else ""),
-                          markup=True, soft_wrap=True)
+                con.print(
+                    f"  [{colour[f.severity]}]{f.severity:7}[/] {f.rule}  <{f.prim}>  "
+                    f"{f.message}" + (f" [dim](fix: {f.hint})[/]" if f.hint else ""),
+                    markup=True,
+                    soft_wrap=True,
+                )
         if total > shown:
             con.print(f"... {total - shown} more findings (see --json)")
     s = summ
@@ -150,8 +167,9 @@ img{image-rendering:auto;border:1px solid #ccc;background:#000}
 """
 
 
-def write_html(path: str, reports: Sequence[AssetReport], summ: dict, fail_on: str,
-               thumbnails: bool) -> None:
+def write_html(
+    path: str, reports: Sequence[AssetReport], summ: dict, fail_on: str, thumbnails: bool
+) -> None:
     """One row per asset: (thumbnail), path, status, timings, findings."""
     e = html.escape
     rows = []
@@ -159,20 +177,21 @@ def write_html(path: str, reports: Sequence[AssetReport], summ: dict, fail_on: s
         thumb = ""
         if thumbnails:
             if r.thumbnail_png_b64:
-                thumb = (f'<img alt="thumbnail" src="data:image/png;base64,'
-                         f'{r.thumbnail_png_b64}">')
+                thumb = f'<img alt="thumbnail" src="data:image/png;base64,{r.thumbnail_png_b64}">'
             else:
                 thumb = "<span class=hint>no thumbnail</span>"
         fl = "".join(
             f"<tr><td><span class='st {e(f.severity)}'>{e(f.severity)}</span></td>"
             f"<td><code>{e(f.rule)}</code></td><td><code>{e(f.prim)}</code></td>"
-            f"<td>{e(f.message)}" + (f"<br><span class=hint>fix: {e(f.hint)}</span>"
-                                    if f.hint else "") + "</td></tr>"
+            f"<td>{e(f.message)}"
+            + (f"<br><span class=hint>fix: {e(f.hint)}</span>" if f.hint else "")
+            + "</td></tr>"
             for f in r.findings
         )
         tm = r.timings.get("total", 0.0)
         rows.append(
-            "<tr>" + (f"<td>{thumb}</td>" if thumbnails else "")
+            "<tr>"
+            + (f"<td>{thumb}</td>" if thumbnails else "")
             + f"<td><code>{e(_rel(r))}</code><br><span class=hint>"
             f"{r.stats.get('lights', '-')} lights, {r.stats.get('meshes', '-')} meshes, "
             f"{tm * 1000:.0f} ms</span></td>"
@@ -181,15 +200,16 @@ def write_html(path: str, reports: Sequence[AssetReport], summ: dict, fail_on: s
         )
     st, fs = summ["status"], summ["findings"]
     head = ("<th>thumbnail</th>" if thumbnails else "") + (
-        "<th>asset</th><th>status</th><th>findings</th>")
+        "<th>asset</th><th>status</th><th>findings</th>"
+    )
     doc = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>stb validate</title><style>{_CSS}</style></head>
 <body><h1>stb validate</h1>
-<p>{summ['assets']} assets in {summ['wall_s']:.1f} s: {st['ok']} ok, {st['warning']} warning,
-{st['error']} error, {st['crash']} crash. Findings: {fs['error']} errors, {fs['warning']}
-warnings, {fs['info']} info. Fail on: {e(fail_on)}.</p>
+<p>{summ["assets"]} assets in {summ["wall_s"]:.1f} s: {st["ok"]} ok, {st["warning"]} warning,
+{st["error"]} error, {st["crash"]} crash. Findings: {fs["error"]} errors, {fs["warning"]}
+warnings, {fs["info"]} info. Fail on: {e(fail_on)}.</p>
 <table><thead><tr>{head}</tr></thead><tbody>
-{''.join(rows)}
+{"".join(rows)}
 </tbody></table></body></html>
 """
     tmp = f"{path}.tmp-{os.getpid()}"

@@ -114,18 +114,24 @@ def check_light_values(prim: Usd.Prim) -> list[Finding]:
         for problem, hits in bad.items():
             _, v0 = hits[0]
             more = f" ({len(hits)} values)" if len(hits) > 1 else ""
-            out.append(finding(
-                rule, path,
-                f"{a.GetName()} = {fmt_value(v0)}: {problem} at {fmt_times(t for t, _ in hits)}"
-                f"{more}",
-            ))
+            out.append(
+                finding(
+                    rule,
+                    path,
+                    f"{a.GetName()} = {fmt_value(v0)}: {problem} at {fmt_times(t for t, _ in hits)}"
+                    f"{more}",
+                )
+            )
     legacy = sorted(n for n in names if n in LEGACY_INPUTS)
     if legacy:
         pairs = ", ".join(f"'{n}' -> 'inputs:{n}'" for n in legacy)
-        out.append(finding(
-            "legacy_attribute", path,
-            f"legacy un-namespaced light attribute{'s' if len(legacy) > 1 else ''}: {pairs}",
-        ))
+        out.append(
+            finding(
+                "legacy_attribute",
+                path,
+                f"legacy un-namespaced light attribute{'s' if len(legacy) > 1 else ''}: {pairs}",
+            )
+        )
     return out
 
 
@@ -183,10 +189,13 @@ def check_ies(prim: Usd.Prim) -> list[Finding]:
     for (authored, resolved), times in by_file.items():
         when = fmt_times(times)
         if not resolved:
-            out.append(finding(
-                "ies_missing", path,
-                f"{fa.GetName()} '{authored}' does not resolve ({when})",
-            ))
+            out.append(
+                finding(
+                    "ies_missing",
+                    path,
+                    f"{fa.GetName()} '{authored}' does not resolve ({when})",
+                )
+            )
             continue
         try:
             prof = load_ies_cached(resolved)
@@ -195,9 +204,9 @@ def check_ies(prim: Usd.Prim) -> list[Finding]:
             continue
         mx = float(prof.max_candela())
         if not (math.isfinite(mx) and mx > 0.0 and prof.power() > 0.0):
-            out.append(finding(
-                "ies_zero_power", path, f"IES file '{authored}' has zero power ({when})"
-            ))
+            out.append(
+                finding("ies_zero_power", path, f"IES file '{authored}' has zero power ({when})")
+            )
             continue
         if sa is not None:
             out.extend(_check_angle_scale(path, fa, sa, authored, resolved, times, prof))
@@ -246,19 +255,25 @@ def _check_angle_scale(
     if inverted:
         _, s0 = max(inverted, key=lambda x: x[1])
         share, before, after = share_cache[s0]
-        out.append(finding(
-            "ies_angle_scale", path,
-            f"{sa.GetName()} = {s0:g} turns downlight profile '{authored}' ({share:.0%} of "
-            f"its flux below the horizon) sideways/up: mean downward cosine {before:.2f} -> "
-            f"{after:.2f}; a negative angleScale rescales about the zenith "
-            f"({fmt_times(t for t, _ in inverted)})",
-        ))
+        out.append(
+            finding(
+                "ies_angle_scale",
+                path,
+                f"{sa.GetName()} = {s0:g} turns downlight profile '{authored}' ({share:.0%} of "
+                f"its flux below the horizon) sideways/up: mean downward cosine {before:.2f} -> "
+                f"{after:.2f}; a negative angleScale rescales about the zenith "
+                f"({fmt_times(t for t, _ in inverted)})",
+            )
+        )
     if degrees:
         _, s0 = degrees[0]
-        out.append(finding(
-            "ies_angle_scale", path,
-            f"{sa.GetName()} = {s0:g} looks like degrees, not a scale factor "
-            f"(|angleScale| > {limits.VALIDATE_IES_ANGLE_SCALE_MAX:g}; "
-            f"{fmt_times(t for t, _ in degrees)})",
-        ))
+        out.append(
+            finding(
+                "ies_angle_scale",
+                path,
+                f"{sa.GetName()} = {s0:g} looks like degrees, not a scale factor "
+                f"(|angleScale| > {limits.VALIDATE_IES_ANGLE_SCALE_MAX:g}; "
+                f"{fmt_times(t for t, _ in degrees)})",
+            )
+        )
     return out

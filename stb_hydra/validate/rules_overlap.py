@@ -93,8 +93,12 @@ def overlap_counts(
     axis = np.array([lp.direction for lp in lights], dtype=np.float64)
     rng2 = np.array([lp.range for lp in lights], dtype=np.float64) ** 2
     cone_cos = np.array(
-        [math.cos(math.radians(min(lp.cone_angle, prims.NO_CONE_ANGLE_DEG))) if lp.has_cone
-         else _NO_CONE_COS for lp in lights]
+        [
+            math.cos(math.radians(min(lp.cone_angle, prims.NO_CONE_ANGLE_DEG)))
+            if lp.has_cone
+            else _NO_CONE_COS
+            for lp in lights
+        ]
     )
     front = np.array([lp.emission == prims.EMIT_COSINE for lp in lights])
     out = np.zeros(len(points), dtype=np.int64)
@@ -131,10 +135,13 @@ def check_overlap(stage: Usd.Stage) -> list[Finding]:
         j = sel[np.argmax(counts[sel])]
         frac = float(np.mean(counts[sel] > limit))
         p = np.r_[pts[j], 1.0] @ stage_from_render
-        out.append(finding(
-            "stb_overlap", ana.meshes[mi].path,
-            f"up to {int(counts[j])} lights overlap at ({p[0]:.3g}, {p[1]:.3g}, {p[2]:.3g}) "
-            f"(stage units) on this mesh; {frac:.0%} of its sampled surface exceeds the "
-            f"{limit}-slot big tile",
-        ))
+        out.append(
+            finding(
+                "stb_overlap",
+                ana.meshes[mi].path,
+                f"up to {int(counts[j])} lights overlap at ({p[0]:.3g}, {p[1]:.3g}, {p[2]:.3g}) "
+                f"(stage units) on this mesh; {frac:.0%} of its sampled surface exceeds the "
+                f"{limit}-slot big tile",
+            )
+        )
     return out

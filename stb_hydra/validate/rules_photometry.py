@@ -29,17 +29,22 @@ def check_photometry(stage: Usd.Stage) -> list[Finding]:
             continue
         side = "below" if math.isfinite(f) and f < lo else "above"
         where = f" (PointInstancer <{r.instancer}>)" if r.instancer else ""
-        out.append(finding(
-            "flux_light", r.prim_path,
-            f"luminous flux {f:.4g} lm is {side} the plausible band "
-            f"[{lo:g}, {hi:g}] lm{where}",
-        ))
+        out.append(
+            finding(
+                "flux_light",
+                r.prim_path,
+                f"luminous flux {f:.4g} lm is {side} the plausible band [{lo:g}, {hi:g}] lm{where}",
+            )
+        )
     for prefab, recs in ana.prefabs().items():
         total = float(sum(r.light.flux for r in recs))
         if total > limits.VALIDATE_PREFAB_FLUX_MAX_LM:
-            out.append(finding(
-                "flux_prefab", prefab,
-                f"{len(recs)} lights emit {total:.4g} lm in total "
-                f"(limit {limits.VALIDATE_PREFAB_FLUX_MAX_LM:g} lm per prefab)",
-            ))
+            out.append(
+                finding(
+                    "flux_prefab",
+                    prefab,
+                    f"{len(recs)} lights emit {total:.4g} lm in total "
+                    f"(limit {limits.VALIDATE_PREFAB_FLUX_MAX_LM:g} lm per prefab)",
+                )
+            )
     return out

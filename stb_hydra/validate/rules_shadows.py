@@ -51,34 +51,46 @@ def check_shadows(stage: Usd.Stage) -> list[Finding]:
         shadowed = [r for r in recs if r.light.shadow_enable]
         n_max = limits.VALIDATE_SHADOWED_LIGHTS_PER_PREFAB_MAX
         if len(shadowed) > n_max:
-            out.append(finding(
-                "shadow_count", prefab,
-                f"{len(shadowed)} shadowed lights in one prefab (limit {n_max}): "
-                f"{_names(shadowed)}",
-            ))
+            out.append(
+                finding(
+                    "shadow_count",
+                    prefab,
+                    f"{len(shadowed)} shadowed lights in one prefab (limit {n_max}): "
+                    f"{_names(shadowed)}",
+                )
+            )
         dyn = [r for r in recs if r.light.shadow_update == prims.SHADOW_DYNAMIC]
         for r in dyn:
             note = "" if r.light.shadow_enable else " but inputs:shadow:enable is off (no effect)"
-            out.append(finding(
-                "shadow_dynamic", r.prim_path,
-                f"opts into dynamic shadows (stb:shadow:update = dynamic){note}",
-            ))
+            out.append(
+                finding(
+                    "shadow_dynamic",
+                    r.prim_path,
+                    f"opts into dynamic shadows (stb:shadow:update = dynamic){note}",
+                )
+            )
         dyn_on = [r for r in dyn if r.light.shadow_enable]
         d_max = limits.VALIDATE_DYNAMIC_SHADOWS_PER_PREFAB_MAX
         if len(dyn_on) > d_max:
-            out.append(finding(
-                "shadow_dynamic_count", prefab,
-                f"{len(dyn_on)} dynamic-shadow lights in one prefab (limit {d_max}): "
-                f"{_names(dyn_on)}",
-            ))
+            out.append(
+                finding(
+                    "shadow_dynamic_count",
+                    prefab,
+                    f"{len(dyn_on)} dynamic-shadow lights in one prefab (limit {d_max}): "
+                    f"{_names(dyn_on)}",
+                )
+            )
         area = sum(map_side(r.light.range, r.light.flux) ** 2 for r in shadowed)
         frac = area / atlas
         if frac > limits.VALIDATE_PREFAB_ATLAS_FRACTION_MAX:
-            out.append(finding(
-                "shadow_atlas", prefab,
-                f"shadow maps of {len(shadowed)} lights need ~{area / 2**20:.1f} Mtexel "
-                f"({frac:.0%} of the {limits.SHADOW_ATLAS_SIZE_DEFAULT}^2 atlas; limit "
-                f"{limits.VALIDATE_PREFAB_ATLAS_FRACTION_MAX:.0%}) seen from "
-                f"{limits.VALIDATE_SHADOW_REFERENCE_DISTANCE_M:g} m",
-            ))
+            out.append(
+                finding(
+                    "shadow_atlas",
+                    prefab,
+                    f"shadow maps of {len(shadowed)} lights need ~{area / 2**20:.1f} Mtexel "
+                    f"({frac:.0%} of the {limits.SHADOW_ATLAS_SIZE_DEFAULT}^2 atlas; limit "
+                    f"{limits.VALIDATE_PREFAB_ATLAS_FRACTION_MAX:.0%}) seen from "
+                    f"{limits.VALIDATE_SHADOW_REFERENCE_DISTANCE_M:g} m",
+                )
+            )
     return out

@@ -21,8 +21,11 @@ from .. import limits
 from .common import finding
 from .findings import Finding
 
-_AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]),
-         "Z": np.array([0.0, 0.0, 1.0])}
+_AXES = {
+    "X": np.array([1.0, 0.0, 0.0]),
+    "Y": np.array([0.0, 1.0, 0.0]),
+    "Z": np.array([0.0, 0.0, 1.0]),
+}
 
 
 def _layer_units(layer: Sdf.Layer) -> tuple[float | None, str | None]:
@@ -40,11 +43,14 @@ def check_units(stage: Usd.Stage) -> list[Finding]:
     out: list[Finding] = []
     missing = [k for k in ("metersPerUnit", "upAxis") if not stage.HasAuthoredMetadata(k)]
     if missing:
-        out.append(finding(
-            "units_missing", "/",
-            f"root layer does not author {' and '.join(missing)} (USD falls back to "
-            "metersPerUnit 0.01 = centimetres, upAxis Y)",
-        ))
+        out.append(
+            finding(
+                "units_missing",
+                "/",
+                f"root layer does not author {' and '.join(missing)} (USD falls back to "
+                "metersPerUnit 0.01 = centimetres, upAxis Y)",
+            )
+        )
     mpu = float(UsdGeom.GetStageMetersPerUnit(stage))
     up = str(UsdGeom.GetStageUpAxis(stage))
     stack = stage.GetLayerStack(includeSessionLayers=False)
@@ -53,11 +59,14 @@ def check_units(stage: Usd.Stage) -> list[Finding]:
         lm, lu = _layer_units(lyr)
         diffs = _diffs(lm, lu, mpu, up)
         if diffs:
-            out.append(finding(
-                "units_mismatch", "/",
-                f"sublayer @{lyr.identifier}@ declares {diffs}; a sublayer's units are "
-                "ignored, its content is read in the stage's units",
-            ))
+            out.append(
+                finding(
+                    "units_mismatch",
+                    "/",
+                    f"sublayer @{lyr.identifier}@ declares {diffs}; a sublayer's units are "
+                    "ignored, its content is read in the stage's units",
+                )
+            )
     it = iter(stage.Traverse(Usd.TraverseInstanceProxies()))
     for prim in it:
         if not (prim.HasAuthoredReferences() or prim.HasAuthoredPayloads()):
@@ -74,10 +83,13 @@ def check_units(stage: Usd.Stage) -> list[Finding]:
             diffs = _diffs(lm, lu, mpu, up, _compensation(prim))
             if diffs:
                 kind = "payload" if node.arcType == Pcp.ArcTypePayload else "reference"
-                out.append(finding(
-                    "units_mismatch", str(prim.GetPath()),
-                    f"{kind} @{layer.identifier}@ declares {diffs}",
-                ))
+                out.append(
+                    finding(
+                        "units_mismatch",
+                        str(prim.GetPath()),
+                        f"{kind} @{layer.identifier}@ declares {diffs}",
+                    )
+                )
     return out
 
 
@@ -92,8 +104,9 @@ def _diffs(lm, lu, mpu, up, world: np.ndarray | None = None) -> str:
     if lm is not None and math.isfinite(lm) and lm > 0 and not _same(lm, mpu):
         scale = float(np.cbrt(abs(np.linalg.det(world)))) if world is not None else 1.0
         if not _same(scale, lm / mpu):
-            parts.append(f"metersPerUnit {lm:g} (stage: {mpu:g}, ratio {lm / mpu:g}, no "
-                         "compensating scale)")
+            parts.append(
+                f"metersPerUnit {lm:g} (stage: {mpu:g}, ratio {lm / mpu:g}, no compensating scale)"
+            )
     if lu is not None and lu != up and lu in _AXES and up in _AXES:
         mapped = _AXES[lu] @ world if world is not None else _AXES[lu]
         n = float(np.linalg.norm(mapped))

@@ -102,9 +102,13 @@ class Selection:
             elif tok == "usd":
                 sel.full |= {b for b in DEFAULT_BUILTINS if b in known}
             elif tok == "usd:all":
-                sel.full |= {m.name for m in all_meta if not m.isSuite
-                             and not m.name.startswith(PLUGIN_NAME + ":")
-                             and _USDZ_KEYWORD not in list(m.GetKeywords())}
+                sel.full |= {
+                    m.name
+                    for m in all_meta
+                    if not m.isSuite
+                    and not m.name.startswith(PLUGIN_NAME + ":")
+                    and _USDZ_KEYWORD not in list(m.GetKeywords())
+                }
             elif tok in RULES:
                 sel.rules.add(tok)
             elif full_name(tok) in ours:

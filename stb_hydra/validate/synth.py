@@ -23,8 +23,10 @@ HEADER = '#usda 1.0\n(\n    defaultPrim = "Prefab"\n{units})\n\n'
 UNITS = '    metersPerUnit = {mpu}\n    upAxis = "Y"\n'
 
 #: A valid LM-63 profile that emits nothing (all candela 0).
-ZERO_IES = ("IESNA:LM-63-2002\n[TEST] zero output\nTILT=NONE\n1 -1 1 3 1 1 2 0 0 0\n1 1 0\n"
-            "0 45 90\n0\n0 0 0\n")
+ZERO_IES = (
+    "IESNA:LM-63-2002\n[TEST] zero output\nTILT=NONE\n1 -1 1 3 1 1 2 0 0 0\n1 1 0\n"
+    "0 45 90\n0\n0 0 0\n"
+)
 
 
 @dataclass
@@ -37,8 +39,15 @@ class LightSpec:
     def usda(self, indent: str = "        ") -> str:
         api = ""
         if self.schemas:
-            api = ' (\n' + indent + '    prepend apiSchemas = [' + ", ".join(
-                f'"{s}"' for s in self.schemas) + ']\n' + indent + ')'
+            api = (
+                " (\n"
+                + indent
+                + "    prepend apiSchemas = ["
+                + ", ".join(f'"{s}"' for s in self.schemas)
+                + "]\n"
+                + indent
+                + ")"
+            )
         lines = [f'{indent}def SphereLight "{self.name}"{api}', indent + "{"]
         for decl, val in self.attrs.items():
             lines.append(f"{indent}    {decl} = {val}")
@@ -94,13 +103,22 @@ class Prefab:
         body = "\n\n".join(lt.usda() for lt in self.lights)
         ground = GROUND
         if self.scale != 1.0:
-            ground = ground.replace('def Mesh "Ground"\n    {',
-                                    'def Mesh "Ground"\n    {\n        double3 xformOp:scale = '
-                                    f'({self.scale:g}, {self.scale:g}, {self.scale:g})\n'
-                                    '        uniform token[] xformOpOrder = ["xformOp:scale"]')
-        return (HEADER.format(units=units)
-                + 'def Xform "Prefab" (\n    kind = "component"\n)\n{\n' + ground
-                + '\n    def Xform "Lights"\n    {\n' + body + "\n    }\n" + self.extra + "}\n")
+            ground = ground.replace(
+                'def Mesh "Ground"\n    {',
+                'def Mesh "Ground"\n    {\n        double3 xformOp:scale = '
+                f"({self.scale:g}, {self.scale:g}, {self.scale:g})\n"
+                '        uniform token[] xformOpOrder = ["xformOp:scale"]',
+            )
+        return (
+            HEADER.format(units=units)
+            + 'def Xform "Prefab" (\n    kind = "component"\n)\n{\n'
+            + ground
+            + '\n    def Xform "Lights"\n    {\n'
+            + body
+            + "\n    }\n"
+            + self.extra
+            + "}\n"
+        )
 
     def write(self, path: Path) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -201,8 +219,10 @@ def _unsafe_abs(p: Prefab, lib: Path, ies_src: Path) -> None:
 
 
 def _unsafe_escape(p: Prefab, lib: Path, ies_src: Path) -> None:
-    p.extra += '\n    def Xform "Outside" (\n        references = @../../outside.usda@\n    )\n' \
-               "    {\n    }\n"
+    p.extra += (
+        '\n    def Xform "Outside" (\n        references = @../../outside.usda@\n    )\n'
+        "    {\n    }\n"
+    )
     p.lights[1 % len(p.lights)].attrs["float inputs:intensity"] = "-1"  # must stay unseen
 
 
@@ -219,41 +239,51 @@ class Plant:
 
 
 PLANTS: dict[str, Plant] = {
-    "intensity_nan": Plant(_set("float inputs:intensity", "nan"),
-                           (("intensity_invalid", L0),)),
-    "intensity_negative": Plant(_set("float inputs:intensity", "-5"),
-                                (("intensity_invalid", L0),)),
+    "intensity_nan": Plant(_set("float inputs:intensity", "nan"), (("intensity_invalid", L0),)),
+    "intensity_negative": Plant(_set("float inputs:intensity", "-5"), (("intensity_invalid", L0),)),
     "exposure": Plant(_set("float inputs:exposure", "40"), (("exposure_invalid", L0),)),
     "color": Plant(_set("color3f inputs:color", "(1, -0.5, 1)"), (("color_invalid", L0),)),
     "radius": Plant(_set("float inputs:radius", "-0.1"), (("shape_invalid", L0),)),
-    "cone": Plant(_set("float inputs:shaping:cone:angle", "200"),
-                  (("cone_angle_invalid", L0),)),
+    "cone": Plant(_set("float inputs:shaping:cone:angle", "200"), (("cone_angle_invalid", L0),)),
     "focus": Plant(_set("float inputs:shaping:focus", "-2"), (("focus_invalid", L0),)),
     "legacy": Plant(_legacy, (("legacy_attribute", L0),)),
-    "ies_missing": Plant(_ies("missing.ies", None), (("ies_missing", L0),),
-                         builtin=("usdUtilsValidators:MissingReferenceValidator",)),
-    "ies_malformed": Plant(_ies("bad.ies", "mdlsdk__test_file_format_error.ies"),
-                           (("ies_malformed", L0),)),
+    "ies_missing": Plant(
+        _ies("missing.ies", None),
+        (("ies_missing", L0),),
+        builtin=("usdUtilsValidators:MissingReferenceValidator",),
+    ),
+    "ies_malformed": Plant(
+        _ies("bad.ies", "mdlsdk__test_file_format_error.ies"), (("ies_malformed", L0),)
+    ),
     "ies_zero": Plant(_ies("zero.ies", "zero"), (("ies_zero_power", L0),)),
     "ies_angle_scale": Plant(
-        _ies("down.ies", "luxtest__bega_84693k4.ies",
-             {"float inputs:shaping:ies:angleScale": "-0.3"}),
-        (("ies_angle_scale", L0),)),
+        _ies(
+            "down.ies", "luxtest__bega_84693k4.ies", {"float inputs:shaping:ies:angleScale": "-0.3"}
+        ),
+        (("ies_angle_scale", L0),),
+    ),
     "flux_low": Plant(_set("float inputs:intensity", "1"), (("flux_light", L0),)),
     "flux_prefab": Plant(_flux_prefab, (("flux_prefab", "/Prefab"),)),
     "shadow_count": Plant(_shadow_count, (("shadow_count", "/Prefab"),)),
     "shadow_dynamic": Plant(_dynamic(1), (("shadow_dynamic", L0),)),
     "shadow_dynamic_count": Plant(
         _dynamic(3),
-        (("shadow_dynamic", L0), ("shadow_dynamic", "/Prefab/Lights/L1"),
-         ("shadow_dynamic", "/Prefab/Lights/L2"), ("shadow_dynamic_count", "/Prefab"))),
+        (
+            ("shadow_dynamic", L0),
+            ("shadow_dynamic", "/Prefab/Lights/L1"),
+            ("shadow_dynamic", "/Prefab/Lights/L2"),
+            ("shadow_dynamic_count", "/Prefab"),
+        ),
+    ),
     "shadow_atlas": Plant(_atlas, (("shadow_atlas", "/Prefab"),)),
-    "stb_overlap": Plant(_overlap, (("stb_overlap", "/Prefab/Box"),
-                                    ("stb_overlap", "/Prefab/Ground"))),
+    "stb_overlap": Plant(
+        _overlap, (("stb_overlap", "/Prefab/Box"), ("stb_overlap", "/Prefab/Ground"))
+    ),
     "units_missing": Plant(_units_missing, (("units_missing", "/"),)),
     "unsafe_absolute": Plant(_unsafe_abs, (("asset_path_unsafe", L0),), opened=False),
-    "unsafe_escape": Plant(_unsafe_escape, (("asset_path_unsafe", "/Prefab/Outside"),),
-                           opened=False),
+    "unsafe_escape": Plant(
+        _unsafe_escape, (("asset_path_unsafe", "/Prefab/Outside"),), opened=False
+    ),
 }
 
 

@@ -60,12 +60,27 @@ if TYPE_CHECKING:
     from ..gl_delegate import GLRenderDelegate
 
 GRID_OPTIONS = Schema(
-    Opt("tile", int, limits.CLUSTER_TILE_PX_DEFAULT, range=limits.CLUSTER_TILE_PX_RANGE,
-        doc="screen tile size of the grid, px"),
-    Opt("slices", int, limits.CLUSTER_SLICES_DEFAULT, range=(0, limits.CLUSTER_SLICES_MAX),
-        doc="exponential depth slices after the near slice (0: 2D tiles)"),
-    Opt("near_split", float, None, nullable=True,
-        doc="end of the near slice, m (none: from the scene bounds)"),
+    Opt(
+        "tile",
+        int,
+        limits.CLUSTER_TILE_PX_DEFAULT,
+        range=limits.CLUSTER_TILE_PX_RANGE,
+        doc="screen tile size of the grid, px",
+    ),
+    Opt(
+        "slices",
+        int,
+        limits.CLUSTER_SLICES_DEFAULT,
+        range=(0, limits.CLUSTER_SLICES_MAX),
+        doc="exponential depth slices after the near slice (0: 2D tiles)",
+    ),
+    Opt(
+        "near_split",
+        float,
+        None,
+        nullable=True,
+        doc="end of the near slice, m (none: from the scene bounds)",
+    ),
     Opt("far", float, None, nullable=True, doc="far end of the grid, m (none: scene bounds)"),
 )
 OPTIONS = GRID_OPTIONS + Schema(
@@ -111,9 +126,7 @@ def fov_lights(
     )
 
 
-def grid_uniforms(
-    prog: moderngl.Program | moderngl.ComputeShader, grid: ClusterGrid
-) -> None:
+def grid_uniforms(prog: moderngl.Program | moderngl.ComputeShader, grid: ClusterGrid) -> None:
     set_uniform(prog, "u_grid", grid.tiles)
     set_uniform(prog, "u_tile_px", grid.tile)
     set_uniform(prog, "u_slices", grid.shader_params())
@@ -151,8 +164,10 @@ class ClusteredLighting(LightingMethod):
         if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
             budget = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
             cap = budget if cap is None else min(cap, budget)
-            self.warn(f"clustered: {len(bins.cell)} light-cluster pairs exceed "
-                 f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
+            self.warn(
+                f"clustered: {len(bins.cell)} light-cluster pairs exceed "
+                f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}"
+            )
         self.lists = cell_lists(C, bins.cell, bins.light, cap)
 
     def execute(self, frame: FrameContext) -> None:
@@ -202,8 +217,10 @@ class ClusteredLighting(LightingMethod):
         want = self.o["cap"] if self.o["cap"] is not None else n
         stride = min(want, max(1, limits.GRID_MAX_LIST_ENTRIES // C))
         if stride < want:
-            self.warn(f"clustered: {C} clusters x {want} lights exceed "
-                 f"{limits.GRID_MAX_LIST_ENTRIES} list entries; lists capped at {stride}")
+            self.warn(
+                f"clustered: {C} clusters x {want} lights exceed "
+                f"{limits.GRID_MAX_LIST_ENTRIES} list entries; lists capped at {stride}"
+            )
         headers = pool.get("headers", C * 8)
         lists = pool.get("lists", C * stride * 4)
         stats = pool.get("stats", 16 + C * 4)

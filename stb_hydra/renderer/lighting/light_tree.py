@@ -48,10 +48,20 @@ if TYPE_CHECKING:
     from ..gl_delegate import GLRenderDelegate
 
 OPTIONS = GRID_OPTIONS + Schema(
-    Opt("leaf", int, limits.LIGHTTREE_LEAF_LIGHTS_DEFAULT,
-        range=(1, limits.LIGHTTREE_MAX_NODE_LIGHTS), doc="lights per tree leaf"),
-    Opt("mode", str, "hybrid", choices=tuple(HEURISTIC_MODES),
-        doc="hybrid (Listing 2), tree in every cell, or list only"),
+    Opt(
+        "leaf",
+        int,
+        limits.LIGHTTREE_LEAF_LIGHTS_DEFAULT,
+        range=(1, limits.LIGHTTREE_MAX_NODE_LIGHTS),
+        doc="lights per tree leaf",
+    ),
+    Opt(
+        "mode",
+        str,
+        "hybrid",
+        choices=tuple(HEURISTIC_MODES),
+        doc="hybrid (Listing 2), tree in every cell, or list only",
+    ),
 )
 
 
@@ -87,8 +97,10 @@ class LightTreeLighting(LightingMethod):
         cap = None
         if len(bins.cell) > limits.GRID_MAX_LIST_ENTRIES:
             cap = max(1, limits.GRID_MAX_LIST_ENTRIES // C)
-            self.warn(f"lighttree: {len(bins.cell)} light-cell pairs exceed "
-                 f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}")
+            self.warn(
+                f"lighttree: {len(bins.cell)} light-cell pairs exceed "
+                f"{limits.GRID_MAX_LIST_ENTRIES}; lists capped at {cap}"
+            )
         lists = cell_lists(C, bins.cell, bins.light, cap)
         lo, hi = bins.depth_lo[lists.light], bins.depth_hi[lists.light]
         # 3. per cell: list or tree (Listing 2), then build + pack

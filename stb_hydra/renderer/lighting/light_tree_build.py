@@ -71,10 +71,14 @@ class ViewParams:
     @classmethod
     def from_setup(cls, v: ViewSetup) -> ViewParams:
         return cls(
-            int(v.width), int(v.height), np.asarray(v.view, dtype=np.float64),
+            int(v.width),
+            int(v.height),
+            np.asarray(v.view, dtype=np.float64),
             (float(v.tan_half[0]), float(v.tan_half[1])),
             (float(v.offset[0]), float(v.offset[1])),
-            float(v.near), float(v.far), bool(v.orthographic),
+            float(v.near),
+            float(v.far),
+            bool(v.orthographic),
         )
 
     @property
@@ -147,7 +151,9 @@ class ClusterGrid:
         if not self.slices:
             return (1.0, 1.0, 0.0, 0.0)
         return (
-            float(self.near_split), float(self.far), float(self.slices),
+            float(self.near_split),
+            float(self.far),
+            float(self.slices),
             float(self.slices / math.log(self.far / self.near_split)),
         )
 
@@ -459,8 +465,14 @@ class PackedTrees:
 
 
 def choose_trees(
-    lists: CellLists, cell_of_entry: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-    cell_lo: np.ndarray, cell_hi: np.ndarray, leaf: int, mode: str = "hybrid",
+    lists: CellLists,
+    cell_of_entry: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    cell_lo: np.ndarray,
+    cell_hi: np.ndarray,
+    leaf: int,
+    mode: str = "hybrid",
 ) -> np.ndarray:
     """Listing 2 per cell: sum of the lights' depth extents clipped to the cell,
     divided by the count, below the cell's radius (half its depth extent) -> tree.
@@ -550,14 +562,20 @@ def build_cells(
         n_max[at] = hmax[:, perm].ravel()
         n_first[at] = hfirst[:, perm].ravel()
         n_bits[at] = pack_bits(
-            np.broadcast_to(leaf_flag, (m, H)).ravel(), hcount[:, perm].ravel(),
+            np.broadcast_to(leaf_flag, (m, H)).ravel(),
+            hcount[:, perm].ravel(),
             np.broadcast_to(skip, (m, H)).ravel(),
         )
 
     return PackedTrees(
-        first_node.astype(np.uint32), nodes.astype(np.uint32),
-        _f32_down(n_min), _f32_up(n_max), n_first.astype(np.uint32), n_bits,
-        lists.light.astype(np.uint32), is_tree,
+        first_node.astype(np.uint32),
+        nodes.astype(np.uint32),
+        _f32_down(n_min),
+        _f32_up(n_max),
+        n_first.astype(np.uint32),
+        n_bits,
+        lists.light.astype(np.uint32),
+        is_tree,
     )
 
 
@@ -612,7 +630,9 @@ def build_single(lo: np.ndarray, hi: np.ndarray, leaf: int, tree: bool = True) -
     order = np.argsort(0.5 * (lo + hi), kind="stable")
     n = len(lo)
     lists = CellLists(
-        np.zeros(1, np.int64), np.array([n], np.int64), order.astype(np.int64),
+        np.zeros(1, np.int64),
+        np.array([n], np.int64),
+        order.astype(np.int64),
         np.array([n], np.int64),
     )
     return build_cells(lists, lo[order], hi[order], np.array([tree and n > leaf]), leaf)

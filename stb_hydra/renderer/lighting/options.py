@@ -134,9 +134,7 @@ class Schema:
         unknown = sorted(set(given) - set(self.opts))
         if unknown:
             valid = ", ".join(self.opts) or "none"
-            raise OptionError(
-                f"unknown {method} option(s): {', '.join(unknown)} (valid: {valid})"
-            )
+            raise OptionError(f"unknown {method} option(s): {', '.join(unknown)} (valid: {valid})")
         out = self.defaults()
         for k, v in given.items():
             out[k] = self.opts[k].coerce(method, v)

@@ -67,25 +67,55 @@ TARGET_MODES = {"segment": 0, "uniform": 1, "shaped": 2}
 SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
 
 OPTIONS = Schema(
-    Opt("K", int, limits.BIG_TILE_SLOTS_DEFAULT, choices=tuple(SLOT_BLOCKS),
-        doc="reservoir slots per big tile"),
+    Opt(
+        "K",
+        int,
+        limits.BIG_TILE_SLOTS_DEFAULT,
+        choices=tuple(SLOT_BLOCKS),
+        doc="reservoir slots per big tile",
+    ),
     Opt("N", int, 1, range=(1, limits.SMALL_TILE_SAMPLES_MAX), doc="samples per small tile"),
     Opt("big_tile", int, limits.BIG_TILE_PX, choices=(32, 64, 128, 256), doc="big tile, px"),
-    Opt("small_tile", int, limits.SMALL_TILE_PX, choices=(4, 8, 16, 32),
-        doc="small tile, px (16 with interleaving)"),
+    Opt(
+        "small_tile",
+        int,
+        limits.SMALL_TILE_PX,
+        choices=(4, 8, 16, 32),
+        doc="small tile, px (16 with interleaving)",
+    ),
     Opt("eps", float, 0.1, doc="small-tile target distance floor, m"),
-    Opt("weight_cap", float, 8.0, nullable=True,
-        doc="sample weight cap relative to the tile mean (none or <= 0: unbiased)"),
+    Opt(
+        "weight_cap",
+        float,
+        8.0,
+        nullable=True,
+        doc="sample weight cap relative to the tile mean (none or <= 0: unbiased)",
+    ),
     Opt("interleave", bool, True, doc="interleaved 4-tile footprints (the talk's)"),
-    Opt("pattern", str, "random", choices=("random", "fixed"),
-        doc="interleaving: a balanced random pattern per frame, or the talk's fixed one"),
+    Opt(
+        "pattern",
+        str,
+        "random",
+        choices=("random", "fixed"),
+        doc="interleaving: a balanced random pattern per frame, or the talk's fixed one",
+    ),
     Opt("stochastic_bilinear", bool, True, doc="stochastic bilinear big-tile choice"),
-    Opt("target", str, "shaped", choices=tuple(TARGET_MODES),
+    Opt(
+        "target",
+        str,
+        "shaped",
+        choices=tuple(TARGET_MODES),
         doc="big-tile target: shaped (emission, cone, IES, range; default), segment (the "
-        "talk's Phi/d^2) or uniform"),
+        "talk's Phi/d^2) or uniform",
+    ),
     Opt("pdf_floor", float, 0.25, doc="defensive mixture weight of the small-tile target"),
-    Opt("shadow_res", str, "quad", choices=("quad", "pixel"), doc="deferred shadow terms per"
-        " 2x2 quad (the talk's) or per pixel"),
+    Opt(
+        "shadow_res",
+        str,
+        "quad",
+        choices=("quad", "pixel"),
+        doc="deferred shadow terms per 2x2 quad (the talk's) or per pixel",
+    ),
 )
 #: Debug views (``shaders/debug_<name>.frag``).
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")

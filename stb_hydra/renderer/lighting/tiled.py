@@ -47,8 +47,13 @@ if TYPE_CHECKING:
 BIND_HEADERS, BIND_LISTS, BIND_EXTRA = SSBO_CELL_HEADERS, SSBO_CELL_LISTS, SSBO_CELL_EXTRA
 
 OPTIONS = Schema(
-    Opt("tile_cap", int, limits.TILED_CAP_DEFAULT, nullable=True,
-        doc="most lights per 16 px tile list (none or <= 0: no cap)"),
+    Opt(
+        "tile_cap",
+        int,
+        limits.TILED_CAP_DEFAULT,
+        nullable=True,
+        doc="most lights per 16 px tile list (none or <= 0: no cap)",
+    ),
     Opt("stats", bool, True, doc="read the dropped-light counters back each frame"),
 )
 

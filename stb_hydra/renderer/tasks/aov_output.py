@@ -85,9 +85,7 @@ def check_debug_aovs(names: Iterable[str], lighting: str, method: Any = None) ->
     if missing:
         owners = [m for m, cls in METHODS.items() if set(missing) <= set(cls.debug_aovs)]
         need = " or ".join(f"--lighting {m}" for m in owners) or "another method"
-        raise ValueError(
-            f"AOV(s) {','.join(missing)} need {need} (this render uses '{lighting}')"
-        )
+        raise ValueError(f"AOV(s) {','.join(missing)} need {need} (this render uses '{lighting}')")
 
 
 # --- the task ----------------------------------------------------------------------------
