@@ -109,6 +109,11 @@ def test_cli_quick_grid(scene_file, tmp_path):
         assert float(by[exact]["relmse"]) <= 1e-4
         assert float(by[exact]["flip"]) < 1e-3
     assert "stb N1 K8 cap A1" in by and "stb N4 K32 nocap A4" in by
+    # what a person sees: the exact methods show no structure or FLIP; noisy stb does
+    assert float(by["reference"]["structure"]) == 0.0
+    assert float(by["reference"]["hdr_flip"]) == 0.0
+    stb1 = by["stb N1 K8 cap A1"]
+    assert float(stb1["structure"]) > 0.5 and float(stb1["hdr_flip"]) > 0.0
     for r in rows:
         assert float(r["frame_ms"]) > 0 and r["frames"] != ""
         assert float(r["image_ms"]) == pytest.approx(

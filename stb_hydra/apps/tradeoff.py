@@ -13,7 +13,9 @@ Per configuration: the median frame time over its frames after warm-up
 study needs is excluded), the lighting share (``prepare.lighting`` + ``lighting``),
 relMSE against ``reference`` (scene-linear, eps ``--eps``), mean LDR-FLIP on the
 display-referred images (OCIO, the renderer's default view), mean HDR-FLIP on
-scene-linear (``--no-hdr-flip`` skips it), temporal instability (mean |frame-to-frame change| of
+scene-linear with the reference's median exposed to mid grey (``--no-hdr-flip`` skips
+it), the structured-noise figure (``stb_hydra.metrics.structured_noise``: 1 = white
+noise, a 2x2 checkerboard ~16), temporal instability (mean |frame-to-frame change| of
 the displayed, display-referred image minus the reference's), dropped lights.
 
 Writes ``tradeoff.csv``, ``pareto.png`` (error against time: per frame on the left,
@@ -82,6 +84,7 @@ CSV_FIELDS = [
     "relmse",
     "flip",
     "hdr_flip",
+    "structure",
     "temporal",
     "dropped_median",
     "dropped_max",
@@ -269,9 +272,10 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
         accumulated_windows,
         display_referred,
         dropped_summary,
-        flip_hdr,
+        flip_hdr_midgrey,
         flip_ldr,
         relmse,
+        structured_noise,
         temporal_excess,
     )
 
@@ -312,7 +316,8 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
             image_ms=round(frame_ms * a, 3),
             relmse=float(np.mean([relmse(w, ref_img, args.eps) for w in wins])),
             flip=round(flip_ldr(disp[0], ref_disp), 6),
-            hdr_flip=round(flip_hdr(wins[0], ref_img), 6) if args.hdr_flip else "",
+            hdr_flip=round(flip_hdr_midgrey(wins[0], ref_img), 6) if args.hdr_flip else "",
+            structure=round(structured_noise(wins[0], ref_img), 4),
             temporal=round(temporal_excess(disp, ref_disp_seq), 6) if len(disp) > 1 else 0.0,
         )
         rows.append(row)
@@ -429,6 +434,11 @@ def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def _opt(v: object, fmt: str = ".4f") -> str:
+    """A metric that may be absent ("" when skipped)."""
+    return "" if v in ("", None) else format(float(v), fmt)  # type: ignore[arg-type]
+
+
 def _fmt_row(r: dict | None, key: str = "frame_ms") -> str:
     if r is None:
         return "| (none) | | | | |"
@@ -495,8 +505,9 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
         "",
         "## Pareto set (frame time)",
         "",
-        "| config | frame (ms) | lighting (ms) | relMSE | FLIP | temporal | dropped |",
-        "|---|---|---|---|---|---|---|",
+        "| config | frame (ms) | lighting (ms) | relMSE | FLIP | HDR-FLIP | structure | "
+        "temporal | dropped |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     t = np.array([float(r["frame_ms"]) for r in rows])
     e = np.array([float(r["relmse"]) for r in rows])
@@ -504,8 +515,8 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
         r = rows[i]
         lines.append(
             f"| {r['label']} | {float(r['frame_ms']):.1f} | {float(r['lighting_ms']):.1f} | "
-            f"{float(r['relmse']):.3g} | {float(r['flip']):.4f} | {float(r['temporal']):.4f} | "
-            f"{r['dropped_median']:g} |"
+            f"{float(r['relmse']):.3g} | {float(r['flip']):.4f} | {_opt(r['hdr_flip'])} | "
+            f"{float(r['structure']):.2f} | {float(r['temporal']):.4f} | {r['dropped_median']:g} |"
         )
     lines += [
         "",
