@@ -2,13 +2,12 @@
 // and shape (emission model, focus tint, IES scale) / d^2 x the quad's shadow
 // term x sample weight; plus sun, dome and emission. The cost does not depend
 // on the number of lights. A sample whose quad term does not stand for this pixel
-// (split bit set by stb_shadow.frag at depth edges and creases) gets its term
-// evaluated here, for this pixel. STB_UNIT_TERMS: every term is 1 (no shadows,
+// (split bit set by stb_shadow.frag at depth edges and creases) takes this pixel's own
+// term, which the shadow pass stored at full resolution. STB_UNIT_TERMS: every term is 1 (no shadows,
 // cones or IES among the lights in view; the term pass did not run).
 #include "common/gbuffer.glsl"
 #include "common/sun.glsl"
 #include "common/lights.glsl"
-#include "common/shadow.glsl"
 #include "common/tiles.glsl"
 
 uniform usampler2D u_smalltile;
@@ -16,6 +15,7 @@ uniform usampler2D u_smalltile;
 uniform sampler2D u_terms;
 #ifndef STB_PIXEL_TERMS
 uniform usampler2D u_term_split;
+uniform sampler2D u_pixel_terms;
 #endif
 #endif
 
@@ -47,16 +47,16 @@ void main() {
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float W = sample_weight(smp[j]);
-        if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0) continue;
+        bool own = (split & (1u << uint(j))) != 0u;  // term evaluated here, per pixel
+        if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0 || (!own && terms[j] <= 0.0)) continue;
         Light L = lights[li];
         vec3 Ldir; float dist;
         float f = light_falloff(L, s.P, Ldir, dist);
         if (f <= 0.0) continue;
         float term = terms[j];
-        if ((split & (1u << uint(j))) != 0u) {
-            term = clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, s.P, s.N)),
-                         0.0, 1.0);
-        }
+#if !defined(STB_UNIT_TERMS) && !defined(STB_PIXEL_TERMS)
+        if (own) term = texelFetch(u_pixel_terms, px, 0)[j];
+#endif
         if (term <= 0.0) continue;
         vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * term;
         vec3 d, sp;

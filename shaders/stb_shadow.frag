@@ -5,11 +5,13 @@
 // floor(255 t + u), u uniform in [0, 1), which is unbiased (a fixed +-0.5 LSB
 // dither is not: it averages to the LSB midpoint).
 //
-// Edge-aware sharing: the quad's term stands for its 4 pixels only where they agree
-// with the representative point (distance within LIM_TERM_SHARE_REL_DISTANCE of the
-// light distance, normals within LIM_TERM_SHARE_NORMAL_COS). Where they do not (depth
-// edges, creases, points close to the light), bit j of the second target is set and
-// the lighting pass evaluates that sample's term per pixel.
+// Edge-aware sharing: the quad's term stands for its 4 pixels only where they lie
+// within LIM_TERM_SHARE_REL_DISTANCE of the light distance of the representative point.
+// Where they do not (depth edges, points close to the light), bit j of the second
+// target is set and
+// that sample's term is evaluated for each of the 4 pixels here and stored per pixel
+// (u_pixel_terms, read by the lighting pass only where the bit is set): the shadow
+// lookups stay in this pass, 4 per split quad instead of 1.
 #include "common/gbuffer.glsl"
 #include "common/rng.glsl"
 #include "common/lights.glsl"
@@ -21,37 +23,42 @@ uniform usampler2D u_smalltile;  // rgba32ui small-tile samples
 layout(location = 0) out vec4 o_terms;
 #ifndef STB_PIXEL_TERMS
 layout(location = 1) out uint o_split;  // bit j: sample j is evaluated per pixel
+layout(rgba8, binding = IMAGE_UNIT_PIXEL_TERMS) writeonly uniform image2D u_pixel_terms;  // split quads only
 #endif
 
-float sample_term(Light L, Surface surf) {
-    vec3 Ldir = normalize(L.pos_range.xyz - surf.P);
-    return clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, surf.P, surf.N)),
-                 0.0, 1.0);
+float sample_term(Light L, vec3 P, vec3 N) {
+    vec3 Ldir = normalize(L.pos_range.xyz - P);
+    return clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, P, N)), 0.0, 1.0);
 }
 
 void main() {
     ivec2 tx = ivec2(gl_FragCoord.xy);
     vec4 terms = vec4(0.0);
-    Surface surf;
+    vec3 P, N;
     bool found = false;
 #ifdef STB_PIXEL_TERMS
     // Full-resolution terms (the talk's "full-res shadows at additional cost"):
     // one texel per pixel, evaluated at that pixel.
     ivec2 st; int slot;
     quad_owner(tx, st, slot);
-    found = read_surface(tx, surf);
+    found = read_geometry(tx, P, N);
 #else
     int s = quads_per_side();
     ivec2 st = tx / s;
     ivec2 q = tx - st * s;
     int slot = q.y * s + q.x;
     ivec2 px = quad_pixel(st, slot);
-    Surface quad[4];
+    // Positions of the 4 pixels (depth only: one fetch each); normals are fetched only
+    // where needed (the representative, and the pixels of a split quad).
+    vec3 qP[4];
     bool valid[4];
     for (int k = 0; k < 4; ++k) {
         ivec2 p = px + ivec2(k & 1, k >> 1);
-        valid[k] = all(greaterThanEqual(p, ivec2(0))) && all(lessThan(p, ivec2(u_resolution.xy)))
-                   && read_surface(p, quad[k]);
+        valid[k] = false;
+        if (any(lessThan(p, ivec2(0))) || any(greaterThanEqual(p, ivec2(u_resolution.xy)))) continue;
+        float depth = texelFetch(g_depth, p, 0).r;
+        valid[k] = depth > 0.0;
+        qP[k] = world_pos_from_depth(vec2(p) + 0.5, depth);
     }
     // The representative is one of the 4 pixels, chosen at random each frame:
     // accumulated frames see the quad's average, not a fixed corner.
@@ -63,7 +70,10 @@ void main() {
         if (valid[k]) rep = k;
     }
     found = rep >= 0;
-    if (found) surf = quad[rep];
+    if (found) {
+        P = qP[rep];
+        N = oct_decode(texelFetch(g_normal, px + ivec2(rep & 1, rep >> 1), 0).rg);
+    }
     uint split = 0u;
 #endif
     if (found) {
@@ -73,22 +83,36 @@ void main() {
             uint li = sample_index(smp[j]);
             if (li == LIM_EMPTY_LIGHT_INDEX) continue;
             Light L = lights[li];
-            float t = sample_term(L, surf);
+            float t = sample_term(L, P, N);
             terms[j] = min(floor(t * 255.0 + rng_float(rng)), 255.0) / 255.0;
 #ifndef STB_PIXEL_TERMS
-            float share = LIM_TERM_SHARE_REL_DISTANCE * length(L.pos_range.xyz - surf.P);
+            float share = LIM_TERM_SHARE_REL_DISTANCE * length(L.pos_range.xyz - P);
             for (int k = 0; k < 4; ++k) {
                 if (!valid[k] || k == rep) continue;
-                if (distance(quad[k].P, surf.P) > share
-                    || dot(quad[k].N, surf.N) < LIM_TERM_SHARE_NORMAL_COS) {
+                if (distance(qP[k], P) > share) {
                     split |= 1u << uint(j);
                 }
             }
 #endif
         }
     }
-    o_terms = terms;
 #ifndef STB_PIXEL_TERMS
+    if (split != 0u) {
+        uvec4 smp = texelFetch(u_smalltile, st, 0);
+        Rng rng = rng_init(uint(tx.y) * 8192u + uint(tx.x) + 0x60000000u, u_counts.y);
+        for (int k = 0; k < 4; ++k) {
+            if (!valid[k]) continue;
+            vec3 Nk = oct_decode(texelFetch(g_normal, px + ivec2(k & 1, k >> 1), 0).rg);
+            vec4 pt = terms;  // the representative's (and unsplit samples') terms
+            for (int j = 0; j < STB_N; ++j) {
+                if (k == rep || (split & (1u << uint(j))) == 0u) continue;
+                float t = sample_term(lights[sample_index(smp[j])], qP[k], Nk);
+                pt[j] = min(floor(t * 255.0 + rng_float(rng)), 255.0) / 255.0;
+            }
+            imageStore(u_pixel_terms, px + ivec2(k & 1, k >> 1), pt);
+        }
+    }
     o_split = split;
 #endif
+    o_terms = terms;
 }

@@ -11,6 +11,15 @@ uniform sampler2D g_base_rough; // rgba16f base colour, roughness
 uniform sampler2D g_f0_metal;   // rgba16f F0, metallic
 uniform sampler2D g_emission;   // rgba16f emitted radiance (nits)
 
+// Position and normal only (2 fetches): false for background pixels.
+bool read_geometry(ivec2 px, out vec3 P, out vec3 N) {
+    float depth = texelFetch(g_depth, px, 0).r;
+    if (depth <= 0.0) return false;
+    P = world_pos_from_depth(vec2(px) + 0.5, depth);
+    N = oct_decode(texelFetch(g_normal, px, 0).rg);
+    return true;
+}
+
 // False for background pixels.
 bool read_surface(ivec2 px, out Surface s) {
     float depth = texelFetch(g_depth, px, 0).r;

@@ -42,6 +42,8 @@ SSBO_CELL_LISTS = 3
 SSBO_CELL_EXTRA = 4
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
+#: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
+IMAGE_UNIT_PIXEL_TERMS = 1
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
 #: ``LightingMethod.bind_common`` hands out from 0 (at most 8: G-buffer, IES, atlas, sun).
@@ -142,7 +144,6 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_PX": str(limits.BIG_TILE_PX),
         "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
         "LIM_TERM_SHARE_REL_DISTANCE": f"{limits.STB_TERM_SHARE_REL_DISTANCE:.6f}",
-        "LIM_TERM_SHARE_NORMAL_COS": f"{limits.STB_TERM_SHARE_NORMAL_COS:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
@@ -152,6 +153,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_CELL_LISTS": str(SSBO_CELL_LISTS),
         "SSBO_CELL_EXTRA": str(SSBO_CELL_EXTRA),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
+        "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "TEX_UNIT_HIZ": str(TEX_UNIT_HIZ),
         # codes and sentinels
         "PI": repr(math.pi),

@@ -44,6 +44,7 @@ from ..gl import set_uniform
 from ..graph import DERIVED, Rec, Resource, Tex
 from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
 from ..shader_constants import (
+    IMAGE_UNIT_PIXEL_TERMS,
     INTERLEAVE_FOOTPRINT_PX,
     INTERLEAVE_QUADS_PER_SIDE,
     QUAD_FWD_Y_SHIFT,
@@ -152,6 +153,7 @@ class StbLighting(LightingMethod):
             Tex("stb_smalltile", "rgba32ui", DERIVED),
             Tex("stb_terms", "rgba8", DERIVED),
             Tex("stb_term_split", "r8ui", DERIVED),
+            Tex("stb_pixel_terms", "rgba8"),
         )
 
     def debug_passes(self) -> list[Pass]:
@@ -298,7 +300,12 @@ class StbLighting(LightingMethod):
             unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
             self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
             targets = ["stb_terms"] if pixel_terms else ["stb_terms", "stb_term_split"]
+            if "u_pixel_terms" in prog:
+                bufs.textures["stb_pixel_terms"].bind_to_image(
+                    IMAGE_UNIT_PIXEL_TERMS, read=False, write=True
+                )
             self._pass(frame, prog, targets, tsize)
+            frame.ctx.memory_barrier()
 
         # 4. lighting
         prog = program(frame, "stb_lighting.frag", defines)
@@ -307,6 +314,7 @@ class StbLighting(LightingMethod):
         unit = self._bind(frame, prog, unit, "u_smalltile", small)
         unit = self._bind(frame, prog, unit, "u_terms", terms)
         unit = self._bind(frame, prog, unit, "u_term_split", split)
+        unit = self._bind(frame, prog, unit, "u_pixel_terms", bufs.textures["stb_pixel_terms"])
         unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
         self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
         with frame.timings_scope("stb_lighting"):
