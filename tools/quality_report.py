@@ -87,7 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         if a.crops:
             a.crops.mkdir(parents=True, exist_ok=True)
-            k = 0.18 / max(float(np.median(ref.mean(-1))), 1e-12)
+            lit = ref.mean(-1)
+            lit = lit[lit > 0]  # background excluded: mid grey on the scene itself
+            k = 0.18 / max(float(np.median(lit)) if lit.size else 1.0, 1e-12)
             side = np.concatenate([tonemap(stb, k), np.ones((h, 4, 3)), tonemap(ref, k)], 1)
             write_png(a.crops / f"{Path(scene).stem}.png", side)
     if a.json:
