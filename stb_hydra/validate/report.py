@@ -14,6 +14,7 @@ JSON schema (``schema`` = 1; docs/VALIDATE.md)::
 
 from __future__ import annotations
 
+import contextlib
 import html
 import json
 import os
@@ -71,12 +72,26 @@ def document(
     }
 
 
-def write_json(path: str, doc: dict) -> None:
+def _write_atomic(path: str, write) -> None:
+    """``write(f)`` into ``path``'s temporary sibling, then rename it onto ``path``; on
+    any failure the temporary file is removed and ``path`` is left as it was."""
     tmp = f"{path}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path: str, doc: dict) -> None:
+    def write(f) -> None:
         json.dump(doc, f, indent=1)
         f.write("\n")
-    os.replace(tmp, path)
+
+    _write_atomic(path, write)
 
 
 def _rel(r: AssetReport) -> str:
@@ -212,7 +227,4 @@ warnings, {fs["info"]} info. Fail on: {e(fail_on)}.</p>
 {"".join(rows)}
 </tbody></table></body></html>
 """
-    tmp = f"{path}.tmp-{os.getpid()}"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(doc)
-    os.replace(tmp, path)
+    _write_atomic(path, lambda f: f.write(doc))

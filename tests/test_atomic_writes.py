@@ -1,0 +1,56 @@
+"""Atomic writers fail midway without harm (issue 21): the old file survives byte for
+byte and no temporary file is left. The failure is injected in the middle of the
+write itself: a lone surrogate after 256 KiB of text cannot be encoded to UTF-8 (the
+first part has already gone through the buffer), an object JSON cannot serialise
+after the first keys of a document."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from stb_hydra.io.files import write_text_atomic
+from stb_hydra.scenegen.common import write_text_atomic as scenegen_write_text_atomic
+from stb_hydra.validate.report import write_json
+
+OLD = "the old content\n"
+BAD_TEXT = "x" * (256 * 1024) + "\ud800"  # encodes partly, then fails
+
+
+def _old(tmp_path: Path, name: str) -> Path:
+    p = tmp_path / name
+    p.write_text(OLD)
+    os.chmod(p, 0o640)
+    return p
+
+
+def _intact(tmp_path: Path, p: Path) -> None:
+    assert p.read_text() == OLD, "the old file was damaged"
+    assert os.stat(p).st_mode & 0o777 == 0o640
+    assert sorted(q.name for q in tmp_path.iterdir()) == [p.name], "a temporary file was left"
+
+
+def test_io_files_write_text_atomic_failing_midway(tmp_path):
+    p = _old(tmp_path, "stats.json")
+    with pytest.raises(UnicodeEncodeError):
+        write_text_atomic(p, BAD_TEXT)
+    _intact(tmp_path, p)
+    write_text_atomic(p, "new\n")  # and a good write replaces it, keeping the mode
+    assert p.read_text() == "new\n" and os.stat(p).st_mode & 0o777 == 0o640
+
+
+def test_scenegen_write_text_atomic_failing_midway(tmp_path):
+    p = _old(tmp_path, "scene.usda")
+    with pytest.raises(UnicodeEncodeError):
+        scenegen_write_text_atomic(p, BAD_TEXT)
+    _intact(tmp_path, p)
+
+
+def test_validate_json_failing_midway(tmp_path):
+    p = _old(tmp_path, "validate.json")
+    doc = {"schema": 1, "pad": "x" * (256 * 1024), "assets": [object()]}
+    with pytest.raises(TypeError):
+        write_json(str(p), doc)
+    _intact(tmp_path, p)
