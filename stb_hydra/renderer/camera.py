@@ -37,6 +37,10 @@ class ViewSetup:
     offset: tuple[float, float]
     orthographic: bool = False
     exposure_scale: float = 1.0
+    #: Subpixel offset of the image content (px, +x right, +y up; temporal reuse).
+    jitter: tuple[float, float] = (0.0, 0.0)
+    #: ``view_proj`` without the jitter (the previous frame's matrix for motion vectors).
+    unjittered_view_proj: np.ndarray | None = None
 
     def frustum_planes(self) -> np.ndarray:
         """(6, 4) world-space planes (n, d) with n.p + d >= 0 inside: left,
@@ -76,7 +80,17 @@ def conform_aperture(cam: CameraPrim, aspect: float) -> tuple[float, float]:
     return h, v
 
 
-def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float = 1.0) -> ViewSetup:
+def view_setup(
+    cam: CameraPrim,
+    width: int,
+    height: int,
+    exposure_scale: float = 1.0,
+    jitter: tuple[float, float] = (0.0, 0.0),
+) -> ViewSetup:
+    """The frame's matrices. ``jitter`` shifts the image content by a subpixel
+    offset (px) through the aperture offset, so the projection and the shaders'
+    pixel -> view reconstruction (``u_tan_off``) agree; ``unjittered_view_proj``
+    keeps the matrix without it."""
     inv_view = np.asarray(cam.transform, dtype=np.float64)
     view = np.linalg.inv(inv_view)
     h_ap, v_ap = conform_aperture(cam, width / height)
@@ -84,16 +98,27 @@ def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float =
         # USD: apertures are in tenths of a scene unit for ortho cameras.
         hw, hh = 0.05 * h_ap, 0.05 * v_ap
         ox, oy = 0.1 * cam.horizontal_aperture_offset, 0.1 * cam.vertical_aperture_offset
-        proj = orthographic(hw, hh, ox, oy, cam.near, cam.far)
+        proj0 = orthographic(hw, hh, ox, oy, cam.near, cam.far)
         tan_half = (hw, hh)
-        offset = (ox, oy)
     else:
         f = max(cam.focal_length, 1e-9)
         tx, ty = 0.5 * h_ap / f, 0.5 * v_ap / f
         ox, oy = cam.horizontal_aperture_offset / f, cam.vertical_aperture_offset / f
-        proj = perspective(tx, ty, ox, oy, cam.near, cam.far)
+        proj0 = perspective(tx, ty, ox, oy, cam.near, cam.far)
         tan_half = (tx, ty)
-        offset = (ox, oy)
+    # NDC = (x / depth - offset) / tan_half: the content moves by +j px when the
+    # offset moves by -2 j tan_half / size.
+    jx, jy = float(jitter[0]), float(jitter[1])
+    if jx or jy:
+        ox -= 2.0 * jx * tan_half[0] / width
+        oy -= 2.0 * jy * tan_half[1] / height
+        if cam.projection == "orthographic":
+            proj = orthographic(tan_half[0], tan_half[1], ox, oy, cam.near, cam.far)
+        else:
+            proj = perspective(tan_half[0], tan_half[1], ox, oy, cam.near, cam.far)
+    else:
+        proj = proj0
+    offset = (ox, oy)
     fwd = -inv_view[2, :3]
     fwd = fwd / max(float(np.linalg.norm(fwd)), 1e-30)
     return ViewSetup(
@@ -111,6 +136,8 @@ def view_setup(cam: CameraPrim, width: int, height: int, exposure_scale: float =
         offset=offset,
         orthographic=cam.projection == "orthographic",
         exposure_scale=exposure_scale,
+        jitter=(jx, jy),
+        unjittered_view_proj=view @ proj0,
     )
 
 

@@ -43,6 +43,7 @@ from .render_index import RenderIndex
 from .tasks.aov_output import AovOutputTask
 from .tasks.base import Pass
 from .tasks.taa import AccumulateTask
+from .tasks.temporal import TemporalTask, halton_jitter
 
 
 class RenderError(RuntimeError):
@@ -179,6 +180,12 @@ class Engine:
         return self._set.accumulate
 
     @property
+    def temporal(self) -> TemporalTask | None:
+        """The taa pass (None unless ``settings.temporal == "taa"``); its history
+        is kept across frames and ``render`` calls."""
+        return self._set.temporal
+
+    @property
     def aov_output(self) -> AovOutputTask:
         return self._set.aov_output
 
@@ -255,7 +262,7 @@ class Engine:
         """One frame through all four phases. ``seed`` selects the frame's random
         sequence (stochastic methods); default: the frame counter."""
         s = self.settings
-        if not self._in_sequence:
+        if not self._in_sequence or s.temporal == "off":
             self.accumulate.reset()  # a lone frame: no running average with older frames
         self.timings.start_frame()
         self._sync(time)
@@ -263,7 +270,9 @@ class Engine:
             raise RenderError("the stage has nothing to render (no geometry and no lights)")
         cam, exposure = self.camera()
         assert s.height is not None  # resolved from the camera's aspect in __init__
-        view: ViewSetup = view_setup(cam, s.width, s.height, exposure)
+        # taa: subpixel jitter (Halton 2, 3); motion vectors stay unjittered.
+        jitter = halton_jitter(self.frame_index) if s.temporal == "taa" else (0.0, 0.0)
+        view: ViewSetup = view_setup(cam, s.width, s.height, exposure, jitter)
         # Influence ranges follow the exposure: the display image does not depend on
         # the unit scale of the lights (every method culls and fades with them).
         self.delegate.light_table.set_exposure(exposure)
@@ -306,7 +315,10 @@ class Engine:
         return _PassScope(self.buffers, frame, p)
 
     def render(self, time: float | None = None, accumulate: int | None = None) -> FrameContext:
-        """Render ``accumulate`` frames (distinct seeds, same time) and average them."""
+        """Render ``accumulate`` frames (distinct seeds, same time) and average them
+        (``temporal="accumulate"``). With ``temporal="taa"`` the frames feed the
+        reprojected history, which carries over to the next call (a sequence);
+        with ``"off"`` only the last frame is shown."""
         n = max(1, int(accumulate or self.settings.accumulate))
         self.accumulate.reset()
         frame: FrameContext | None = None

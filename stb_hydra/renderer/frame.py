@@ -16,6 +16,9 @@ from .frame_data import SunSetup
 
 T = TypeVar("T")
 
+#: ``RenderSettings.temporal`` values (``stb render --temporal``).
+TEMPORAL_MODES = ("accumulate", "taa", "off")
+
 
 @dataclass
 class RenderSettings:
@@ -40,6 +43,12 @@ class RenderSettings:
     #: Local shadow filter: "pcf" (4-tap gather) or "stochastic" (gather + a random
     #: sub-texel offset per pixel and frame; converges softer under accumulation).
     shadow_filter: str = "pcf"
+    #: Temporal reuse: "accumulate" (a running average of the frames of one
+    #: ``Engine.render`` call: a still camera, as ``accumulate`` frames), "taa"
+    #: (reprojected history kept across frames and render calls, with subpixel
+    #: jitter: a moving camera or animated objects; ``tasks/temporal.py``) or "off"
+    #: (every frame on its own).
+    temporal: str = "accumulate"
     #: Extra uniform ambient radiance (nits) added to the dome, e.g. for thumbnails.
     ambient: float = 0.0
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).
@@ -48,6 +57,10 @@ class RenderSettings:
     method_options: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if self.temporal not in TEMPORAL_MODES:
+            raise ValueError(
+                f"temporal must be one of {', '.join(TEMPORAL_MODES)}; got {self.temporal!r}"
+            )
         b = self.shadow_budget
         if b is not None and (isinstance(b, bool) or int(b) != b or b <= 0):
             raise ValueError(

@@ -29,6 +29,7 @@ from .tasks.lighting import LightingTask
 from .tasks.shadow import SunShadowTask
 from .tasks.shadow_atlas import ShadowAtlasTask
 from .tasks.taa import AccumulateTask
+from .tasks.temporal import TemporalTask
 
 #: Resources owned outside the graph (the delegate's prims, the OCIO pipeline).
 IMPORTS = ("light_table", "meshes", "color_pipeline")
@@ -41,6 +42,8 @@ class PassSet:
     passes: list[Pass]
     lighting: LightingTask
     accumulate: AccumulateTask
+    #: The taa pass (``settings.temporal == "taa"``; it replaces ``accumulate``).
+    temporal: TemporalTask | None
     aov_output: AovOutputTask
     frame_uniforms: FrameUniformsTask
     shadow_atlas: ShadowAtlasTask
@@ -63,6 +66,7 @@ def build_passes(
     )
     lighting = LightingTask(delegate, method)
     accumulate = AccumulateTask(delegate)
+    temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
     uniforms = FrameUniformsTask(delegate, ctx)
     aov = AovOutputTask(delegate, method)
     passes: list[Pass] = [
@@ -75,13 +79,13 @@ def build_passes(
         GBufferTask(delegate),
         HiZTask(delegate, max(HIZ_LEVELS, method.hiz_level)),
         lighting,
-        accumulate,
+        temporal if temporal is not None else accumulate,
         ColorCorrectionTask(delegate, color),
         *method.debug_passes(),
         LightCountTask(delegate),
         aov,
     ]
-    return PassSet(passes, lighting, accumulate, aov, uniforms, atlas)
+    return PassSet(passes, lighting, accumulate, temporal, aov, uniforms, atlas)
 
 
 __all__ = ["IMPORTS", "PassSet", "build_passes"]

@@ -10,12 +10,17 @@ from ..graph import Imported, Rec, Tex
 from ..records import SceneColor
 from .base import Pass
 from .taa import ACCUM
+from .temporal import OUTPUT as TAA_OUTPUT
 
 if TYPE_CHECKING:
     from ..gl_delegate import GLRenderDelegate
 
 #: Buffers that may hold the frame's scene-linear colour (``SceneColor.buffer``).
-COLOR_SOURCES = (Tex("lighting"), *(Tex(n, optional=True) for n in ACCUM))
+COLOR_SOURCES = (
+    Tex("lighting"),
+    *(Tex(n, optional=True) for n in ACCUM),
+    Tex(TAA_OUTPUT, optional=True),
+)
 
 
 class ColorCorrectionTask(Pass):

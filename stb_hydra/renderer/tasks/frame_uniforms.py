@@ -53,7 +53,10 @@ class FrameUniformsTask(Pass):
                 lights.extra,
             )
         )
-        self._prev_view_proj = view.view_proj
+        # Unjittered: the G-buffer's motion vectors are then (this frame's jitter +
+        # the motion), and the temporal pass subtracts the jitter it knows.
+        unjittered = view.unjittered_view_proj
+        self._prev_view_proj = view.view_proj if unjittered is None else unjittered
         frame.put(FrameBlock(big_tiles=big))
 
     def release(self) -> None:
