@@ -123,6 +123,9 @@ def add_parser(sub) -> None:
         help="print the frame's pass graph (passes in order, what each reads and writes, "
         "render buffers) for these settings and exit without rendering",
     )
+    from ..distributed.cluster import add_ray_arguments
+
+    add_ray_arguments(p, render=True)
     p.set_defaults(func=main)
 
 
@@ -135,6 +138,10 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, rep: Reporter) -> int:
+    if getattr(args, "ray", None) is not None and not args.print_graph:
+        from ..distributed.render import run
+
+        return run(args, rep)
     aovs = _check_settings(args)
     frames = _check_outputs(args)
     stage = open_stage(args.scene)
@@ -404,7 +411,6 @@ def _render_frames(
     releases the engine. Returns the number of frames written."""
     from ..io.images import ImageWriteError, frame_path, has_frame_placeholder
     from ..renderer.engine import RenderError
-    from ..scene.stage_io import time_label
 
     samples = max(1, int(eng.settings.accumulate))
     progress = _Progress(eng, len(frames), samples, rep)
@@ -429,43 +435,53 @@ def _render_frames(
             rep.warn_all(eng.warnings)
             rep.drain_usd()
             _warn_empty_view(eng, rep)
-            meta = {
-                "stb:camera": stats["settings"]["camera"],
-                "stb:frame": "default" if fr is None else fr,
-                "stb:renderSettings": stats["settings"],
-                "stb:renderer": eng.renderer_info,
-            }
+            meta = _frame_meta(stats, eng, fr)
             _write_outputs(eng, out, aovs, ext, pipeline, meta)
             written += 1
-            stats["frames"].append(
-                {
-                    # the time code rendered: a number, or "default" for a stage
-                    # without a time range rendered without --frames
-                    "frame": time_label(eng.scene_index.time),
-                    "output": out,
-                    "wall_ms": round(wall, 3),
-                    "timings_ms": {k: round(v, 3) for k, v in eng.timings.frames[-1].items()},
-                    **{
-                        k: v
-                        for k, v in frame.stats.items()
-                        if v is None or isinstance(v, (int, float, bool))
-                    },
-                }
-            )
+            stats["frames"].append(_frame_record(eng, frame, out, wall))
     except ImageWriteError as exc:
         raise CliError(str(exc)) from None
     finally:
         progress.close()
         eng.release()
     if skipped:
-        names = ", ".join(os.path.basename(p) for p in skipped[:3])
-        more = f" ... {os.path.basename(skipped[-1])}" if len(skipped) > 3 else ""
-        rep.say(
-            f"stb render: --skip-existing skipped {len(skipped)} of {len(frames)} "
-            f"frame{'s' if len(frames) != 1 else ''} (files exist: {names}{more})"
-        )
+        _say_skipped(rep, skipped, len(frames))
     stats["warnings"] = list(rep.lines)
     return written
+
+
+def _say_skipped(rep: Reporter, skipped: list[str], n_frames: int) -> None:
+    names = ", ".join(os.path.basename(p) for p in skipped[:3])
+    more = f" ... {os.path.basename(skipped[-1])}" if len(skipped) > 3 else ""
+    rep.say(
+        f"stb render: --skip-existing skipped {len(skipped)} of {n_frames} "
+        f"frame{'s' if n_frames != 1 else ''} (files exist: {names}{more})"
+    )
+
+
+def _frame_meta(stats: dict, eng, fr: float | None) -> dict:
+    """The images' metadata of frame ``fr``."""
+    return {
+        "stb:camera": stats["settings"]["camera"],
+        "stb:frame": "default" if fr is None else fr,
+        "stb:renderSettings": stats["settings"],
+        "stb:renderer": eng.renderer_info,
+    }
+
+
+def _frame_record(eng, frame, out: str, wall: float) -> dict:
+    """The ``--stats`` record of the frame just rendered to ``out``."""
+    from ..scene.stage_io import time_label
+
+    return {
+        # the time code rendered: a number, or "default" for a stage
+        # without a time range rendered without --frames
+        "frame": time_label(eng.scene_index.time),
+        "output": out,
+        "wall_ms": round(wall, 3),
+        "timings_ms": {k: round(v, 3) for k, v in eng.timings.frames[-1].items()},
+        **{k: v for k, v in frame.stats.items() if v is None or isinstance(v, (int, float, bool))},
+    }
 
 
 def _finish(args: argparse.Namespace, stats: dict, written: int, rep: Reporter) -> int:

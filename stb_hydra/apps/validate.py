@@ -114,6 +114,9 @@ def add_parser(sub) -> None:
         help="seconds per asset before its worker is killed (default 300)",
     )
     p.add_argument("--quiet", "-q", action="store_true", help="no progress bar or table")
+    from ..distributed.cluster import add_ray_arguments
+
+    add_ray_arguments(p)  # --ray: one task per asset, --jobs ignored
     p.set_defaults(func=main)
 
 
@@ -164,8 +167,15 @@ def main(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.update(1)
 
+    jobs = args.jobs
     try:
-        if args.jobs == 0:
+        if getattr(args, "ray", None) is not None:
+            from ..distributed.validate import run_on_ray
+
+            reports, jobs = run_on_ray(
+                args.ray, tasks, args.rules, args.thumbnails, timeout, on_done=tick
+            )
+        elif args.jobs == 0:
             reports = []
             for path, root in tasks:
                 rep = validate_in_process(path, root, sel, args.thumbnails)
@@ -175,17 +185,17 @@ def main(args: argparse.Namespace) -> int:
             reports = run_parallel(
                 tasks, args.jobs, args.rules, args.thumbnails, timeout, on_done=tick
             )
-    except WorkerStartError as exc:
+    except (WorkerStartError, CliError) as exc:
         return fail(str(exc))
     finally:
         if bar is not None:
             bar.close()
     wall = time.perf_counter() - t0
-    summ = report.summary(reports, wall, args.jobs)
+    summ = report.summary(reports, wall, jobs)
     try:
         if args.json:
             report.write_json(
-                args.json, report.document(reports, wall, args.jobs, args.fail_on, sel.validators)
+                args.json, report.document(reports, wall, jobs, args.fail_on, sel.validators)
             )
         if args.html:
             report.write_html(args.html, reports, summ, args.fail_on, args.thumbnails)

@@ -1,0 +1,469 @@
+"""``stb render ... --ray [ADDRESS]``: frames rendered by Ray actors.
+
+Each worker is an actor (``num_cpus`` 1, ``num_gpus`` 1 when the cluster has GPUs or
+``--worker-gpus`` asks) in its own process: it opens the stage and builds its own
+:class:`~stb_hydra.renderer.engine.Engine` (its own EGL context; nothing GL crosses a
+process) once, then renders the frames the driver hands it one at a time -- the next
+frame goes to whichever worker is free (``ray.wait``), so a slow frame does not stall
+a fixed slice. A frame's seeds are those of a local render of the same ``--frames``
+(the engine's frame counter is set to the frame's position times ``--accumulate``),
+so the files are byte-identical to a local render's. The worker writes its files
+atomically through the image writer (shared storage on a farm) and sends back the
+frame's stats record and any new warnings; the driver shows the progress bar and
+writes the one ``--stats`` JSON.
+
+Faults: a worker that dies (machine lost, process killed, segfault) loses only the
+frame it had; that frame goes back to the queue (at most :data:`MAX_ATTEMPTS`
+attempts) and a replacement worker is started. A frame that fails for a reason of the
+scene (``RenderError``, an unwritable path, ...) is reported once and not retried; a
+worker that cannot open the stage reports the path on its host. The run ends with a
+summary of frames done, failed and retried.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import socket
+import sys
+import time as _time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..apps.common import EXIT_ERROR, EXIT_OK, CliError, Reporter
+from .cluster import cluster_resources, connected
+
+#: Attempts per frame when its workers die (the first one included).
+MAX_ATTEMPTS = 3
+#: Test hook: called as ``hook(pool, worker, index)`` right after a frame is dispatched.
+on_dispatch: Callable[[Any, Any, int], None] | None = None
+
+# argparse values that travel to the workers (everything the render steps read).
+_SKIP_ARGS = {"func", "reporter", "ray", "workers", "worker_gpus", "worker_cpus"}
+
+
+class RenderWorker:
+    """One render process: the stage opened and the engine built once (``job``: the
+    render's arguments, absolute paths), then :meth:`render` per frame. Errors while
+    setting up are kept and returned by :meth:`ready` (one line, with the host)."""
+
+    def __init__(self, job: dict[str, Any]) -> None:
+        self.host = socket.gethostname()
+        self.error: str | None = None
+        self.eng: Any = None
+        self.sent = 0
+        try:
+            self._setup(job)
+        except CliError as exc:
+            self.error = str(exc)
+        except Exception as exc:  # noqa: BLE001 - reported by ready()
+            self.error = " ".join(f"{type(exc).__name__}: {exc}".split())
+
+    def _setup(self, job: dict[str, Any]) -> None:
+        threads = job.get("threads")
+        if threads:
+            # llvmpipe's rasteriser threads: this worker's CPUs (before the context).
+            os.environ.setdefault("LP_NUM_THREADS", str(threads))
+        from pxr import Work
+
+        import stb_hydra  # noqa: F401  (schema registration before any stage)
+
+        from ..apps import render as r
+        from ..apps.common import open_stage
+
+        if threads:
+            Work.SetConcurrencyLimit(int(threads))
+        args = argparse.Namespace(**job["args"])
+        self.args = args
+        self.rep = Reporter("stb render", quiet=True).__enter__()
+        self.aovs = r._check_settings(args)
+        stage = open_stage(args.scene)
+        self.rep.drain_usd(os.path.dirname(args.scene))
+        self.pipeline = r._color_pipeline(args)
+        settings = r._render_settings(args)
+        self.eng = r._build_engine(stage, settings, self.pipeline, job["first"])
+        r._check_image_size(self.eng)
+        self.ext = os.path.splitext(args.output)[1].lower()
+        want = set(self.aovs) | ({"display"} if self.ext in (".png", ".jpg", ".jpeg") else set())
+        self.eng.request_aovs(want)
+        self.rep.warn_all(self.eng.warnings)
+        self.stats = r._stats_header(args, self.eng, settings, self.pipeline)
+        self.samples = max(1, int(settings.accumulate))
+
+    def _new_warnings(self) -> list[str]:
+        lines = self.rep.lines[self.sent :] if self.eng is not None else []
+        self.sent += len(lines)
+        return lines
+
+    def ready(self) -> dict[str, Any]:
+        """``{"host", "pid", "error"}`` and, when set up, the stats header."""
+        out: dict[str, Any] = {"host": self.host, "pid": os.getpid(), "error": self.error}
+        if self.error is None:
+            out["header"] = self.stats
+            out["warnings"] = self._new_warnings()
+        return out
+
+    def render(self, index: int, fr: float | None, out: str) -> dict[str, Any]:
+        """Render frame ``fr`` (position ``index`` of ``--frames``) to ``out``: its
+        stats record, or ``{"error": ...}`` for a reason of the scene."""
+        from ..apps import render as r
+        from ..io.images import ImageWriteError
+        from ..renderer.engine import RenderError
+
+        t_start = _time.perf_counter()
+        eng, rep = self.eng, self.rep
+        try:
+            eng.frame_index = index * self.samples  # the seeds of a local render
+            t0 = _time.perf_counter()
+            frame = eng.render(fr)
+            wall = (_time.perf_counter() - t0) * 1e3
+            rep.warn_all(eng.warnings)
+            rep.drain_usd()
+            r._warn_empty_view(eng, rep)
+            meta = r._frame_meta(self.stats, eng, fr)
+            r._write_outputs(eng, out, self.aovs, self.ext, self.pipeline, meta)
+            record = r._frame_record(eng, frame, out, wall)
+        except (RenderError, CliError, ImageWriteError, ValueError, OSError) as exc:
+            return {"index": index, "error": str(exc), "warnings": self._new_warnings()}
+        return {
+            "index": index,
+            "record": record,
+            "warnings": self._new_warnings(),
+            "busy_ms": (_time.perf_counter() - t_start) * 1e3,
+        }
+
+    def close(self) -> None:
+        if self.eng is not None:
+            self.eng.release()
+            self.eng = None
+
+
+@dataclass
+class _Slot:
+    """A worker actor as the driver sees it."""
+
+    actor: Any
+    serial: int
+    host: str = "?"
+    ready: bool = False
+    alive: bool = True
+    index: int = -1  # the frame it renders, -1 when idle
+    sent_at: float = 0.0
+    frames: int = 0
+
+
+@dataclass
+class RunResult:
+    records: dict[int, dict] = field(default_factory=dict)
+    failed: dict[int, str] = field(default_factory=dict)
+    retried: int = 0
+    workers_lost: int = 0
+    header: dict | None = None
+    hosts: set[str] = field(default_factory=set)
+    overhead_ms: list[float] = field(default_factory=list)
+    setup_errors: list[str] = field(default_factory=list)
+
+
+class _Pool:
+    """The driver's side: workers, the frame queue, and the results."""
+
+    def __init__(
+        self,
+        ray: Any,
+        job: dict,
+        todo: list[int],
+        frames: list[float | None],
+        outputs: list[str],
+        n_workers: int,
+        resources: dict[str, float],
+        rep: Reporter,
+        tick: Callable[[], None],
+    ) -> None:
+        self.ray = ray
+        self.job = job
+        self.frames = frames
+        self.outputs = outputs
+        self.queue: deque[int] = deque(todo)
+        self.attempts: dict[int, int] = {}
+        self.rep = rep
+        self.tick = tick
+        self.cls = ray.remote(RenderWorker).options(
+            max_restarts=0, max_task_retries=0, max_concurrency=1, **resources
+        )
+        self.slots: list[_Slot] = []
+        self.refs: dict[Any, tuple[str, _Slot]] = {}
+        self.serial = 0
+        self.replacements = max(2, n_workers)
+        self.res = RunResult()
+        for _ in range(n_workers):
+            self._start()
+
+    def _start(self) -> None:
+        self.serial += 1
+        slot = _Slot(self.cls.remote(self.job), self.serial)
+        self.slots.append(slot)
+        self.refs[slot.actor.ready.remote()] = ("ready", slot)
+
+    def _dispatch(self, slot: _Slot) -> None:
+        if not self.queue or not slot.alive or not slot.ready or slot.index >= 0:
+            return
+        i = self.queue.popleft()
+        slot.index, slot.sent_at = i, _time.perf_counter()
+        ref = slot.actor.render.remote(i, self.frames[i], self.outputs[i])
+        self.refs[ref] = ("frame", slot)
+        if on_dispatch is not None:
+            on_dispatch(self, slot, i)
+
+    def run(self) -> RunResult:
+        ray = self.ray
+        while self.refs:
+            done, _ = ray.wait(list(self.refs), num_returns=1)
+            kind, slot = self.refs.pop(done[0])
+            try:
+                msg = ray.get(done[0])
+            except (ray.exceptions.RayActorError, ray.exceptions.ActorUnavailableError) as exc:
+                self._lost(slot, exc)
+                continue
+            except ray.exceptions.RayTaskError as exc:
+                msg = {"index": slot.index, "error": _task_error(exc)}
+            if kind == "ready":
+                self._ready(slot, msg)
+            else:
+                self._frame(slot, msg)
+            self._dispatch(slot)
+        for i in self.queue:  # no worker left to render them
+            self.res.failed.setdefault(i, "no worker left to render it")
+        return self.res
+
+    def _ready(self, slot: _Slot, msg: dict) -> None:
+        slot.host = msg.get("host", "?")
+        if msg.get("error"):
+            slot.alive = False
+            err = f"Ray worker on {slot.host}: {msg['error']}"
+            self.res.setup_errors.append(err)
+            self.rep.say(f"stb render: {err}")
+            self.ray.kill(slot.actor)
+            return
+        slot.ready = True
+        self.res.hosts.add(slot.host)
+        if self.res.header is None:
+            self.res.header = msg["header"]
+        self.rep.warn_all(msg.get("warnings", ()))
+
+    def _frame(self, slot: _Slot, msg: dict) -> None:
+        i = slot.index
+        slot.index = -1
+        rtt = (_time.perf_counter() - slot.sent_at) * 1e3
+        self.rep.warn_all(msg.get("warnings", ()))
+        if "error" in msg:
+            self.res.failed[i] = str(msg["error"])
+            self.rep.say(f"stb render: frame {_label(self.frames[i])} failed: {msg['error']}")
+        else:
+            rec = msg["record"]
+            rec["worker"] = {"serial": slot.serial, "host": slot.host}
+            self.res.records[i] = rec
+            slot.frames += 1
+            if "busy_ms" in msg:
+                self.res.overhead_ms.append(rtt - float(msg["busy_ms"]))
+        self.tick()
+
+    def _lost(self, slot: _Slot, exc: BaseException) -> None:
+        """``slot``'s actor died: its frame back to the queue (bounded), a replacement."""
+        slot.alive = False
+        self.res.workers_lost += 1
+        why = " ".join(str(exc).split())[:200]
+        i = slot.index
+        slot.index = -1
+        if i >= 0:
+            n = self.attempts[i] = self.attempts.get(i, 1) + 1
+            if n > MAX_ATTEMPTS:
+                self.res.failed[i] = f"its worker died {MAX_ATTEMPTS} times (last: {why})"
+                self.rep.say(
+                    f"stb render: frame {_label(self.frames[i])} failed: {self.res.failed[i]}"
+                )
+                self.tick()
+            else:
+                self.res.retried += 1
+                self.queue.appendleft(i)
+                self.rep.say(
+                    f"stb render: worker {slot.serial} on {slot.host} died during frame "
+                    f"{_label(self.frames[i])}; re-running it"
+                )
+        if self.queue and self.replacements > 0:
+            self.replacements -= 1
+            self._start()
+        for s in self.slots:
+            self._dispatch(s)
+
+    def close(self) -> None:
+        for s in self.slots:
+            if s.alive:
+                try:
+                    self.ray.kill(s.actor)
+                except Exception:  # noqa: BLE001 - best effort at the end
+                    pass
+
+
+def _task_error(exc: BaseException) -> str:
+    cause = getattr(exc, "cause", None)
+    if isinstance(cause, BaseException):
+        return " ".join(f"{type(cause).__name__}: {cause}".split())[:500]
+    return " ".join(str(exc).split())[:500]
+
+
+def _label(fr: float | None) -> str:
+    if fr is None:
+        return "default"
+    return f"{fr:g}"
+
+
+def _job(args: argparse.Namespace, first: float | None, threads: int) -> dict[str, Any]:
+    """The render's arguments for the workers, with absolute paths."""
+    values = {k: v for k, v in vars(args).items() if k not in _SKIP_ARGS}
+    for k in ("scene", "output", "ocio_config"):
+        if values.get(k):
+            values[k] = os.path.abspath(values[k])
+    values["stats"] = None  # written by the driver
+    values["quiet"] = True
+    values["print_graph"] = False
+    return {"args": values, "first": first, "threads": threads}
+
+
+def _worker_resources(args: argparse.Namespace, total: dict[str, float]) -> dict[str, float]:
+    cpus = float(args.worker_cpus)
+    gpus = args.worker_gpus
+    if gpus is None:
+        gpus = 1.0 if total.get("GPU", 0.0) >= 1.0 else 0.0
+    out = {"num_cpus": cpus}
+    if gpus:
+        out["num_gpus"] = float(gpus)
+    return out
+
+
+def _n_workers(args: argparse.Namespace, res: dict[str, float], total: dict, todo: int) -> int:
+    if args.workers is not None:
+        if args.workers < 1:
+            raise CliError(f"--workers must be >= 1, got {args.workers}")
+        return min(args.workers, todo)
+    fits = int(total.get("CPU", 1.0) // max(res["num_cpus"], 1e-9))
+    if res.get("num_gpus"):
+        fits = min(fits, int(total.get("GPU", 0.0) // res["num_gpus"]))
+    return max(1, min(fits, todo))
+
+
+def run(args: argparse.Namespace, rep: Reporter) -> int:
+    """``stb render`` on Ray: the driver (checks, queue, progress, stats)."""
+    from ..apps import render as r
+    from ..io.images import frame_path, has_frame_placeholder
+
+    if getattr(args, "temporal", None) == "taa":
+        raise CliError("--ray renders frames independently: --temporal taa needs one process")
+    r._check_settings(args)
+    frames = r._check_outputs(args)
+    r._render_settings(args)  # option checks before any worker starts
+    r._color_pipeline(args)
+    if args.worker_cpus < 1:
+        raise CliError(f"--worker-cpus must be >= 1, got {args.worker_cpus}")
+    outputs = [
+        os.path.abspath(
+            frame_path(args.output, fr)
+            if fr is not None and has_frame_placeholder(args.output)
+            else args.output
+        )
+        for fr in frames
+    ]
+    todo, skipped = [], []
+    for i, out in enumerate(outputs):
+        if args.skip_existing and os.path.exists(out):
+            skipped.append(i)
+        else:
+            todo.append(i)
+    if skipped:
+        r._say_skipped(rep, [outputs[i] for i in skipped], len(frames))
+    stats: dict[str, Any] = {"scene": args.scene, "frames": []}
+    res = RunResult()
+    t0 = _time.perf_counter()
+    n = 0
+    if todo:
+        with connected(args.ray) as ray:
+            total = cluster_resources(ray)
+            resources = _worker_resources(args, total)
+            n = _n_workers(args, resources, total, len(todo))
+            res = _render_on(ray, args, rep, frames, outputs, todo, skipped, n, resources)
+    wall = _time.perf_counter() - t0
+    if res.header is not None:
+        stats = {**res.header}
+        stats["frames"] = [res.records[i] for i in sorted(res.records)]
+    done, failed = len(res.records), len(res.failed)
+    over = sorted(res.overhead_ms)
+    stats["ray"] = {
+        "address": args.ray or "default",
+        "workers": n,
+        "hosts": sorted(res.hosts),
+        "frames_done": done,
+        "frames_failed": failed,
+        "frames_skipped": len(skipped),
+        "retried": res.retried,
+        "workers_lost": res.workers_lost,
+        "failures": [
+            {"frame": frames[i] if frames[i] is not None else "default", "error": e}
+            for i, e in sorted(res.failed.items())
+        ],
+        "wall_s": round(wall, 3),
+        # driver round trip minus the worker's own time, per frame
+        "scheduling_overhead_ms": {
+            "median": round(over[len(over) // 2], 3) if over else None,
+            "mean": round(sum(over) / len(over), 3) if over else None,
+        },
+    }
+    stats["warnings"] = list(rep.lines)
+    if todo and res.header is None:
+        raise CliError(res.setup_errors[0] if res.setup_errors else "no Ray worker started")
+    rep.say(
+        f"stb render: {done} frame{'s' if done != 1 else ''} done, {failed} failed, "
+        f"{res.retried} retried, {len(skipped)} skipped ({n} Ray worker{'s' if n != 1 else ''}"
+        f" on {len(res.hosts)} host{'s' if len(res.hosts) != 1 else ''}, {wall:.1f} s)"
+    )
+    r._finish(args, stats, done, rep)
+    if failed:
+        return EXIT_ERROR
+    if done == 0 and not args.skip_existing:
+        return EXIT_ERROR
+    return EXIT_OK
+
+
+def _render_on(
+    ray: Any,
+    args: argparse.Namespace,
+    rep: Reporter,
+    frames: list[float | None],
+    outputs: list[str],
+    todo: list[int],
+    skipped: list[int],
+    n: int,
+    resources: dict[str, float],
+) -> RunResult:
+    from tqdm import tqdm
+
+    bar = tqdm(
+        total=len(frames),
+        initial=len(skipped),
+        unit="frame",
+        desc="stb render (ray)",
+        file=sys.stderr,
+        disable=True if rep.quiet else None,
+        dynamic_ncols=True,
+    )
+    if not bar.disable:
+        rep.bar = bar
+    job = _job(args, frames[todo[0]], int(resources["num_cpus"]))
+    pool = _Pool(ray, job, todo, frames, outputs, n, resources, rep, lambda: bar.update(1))
+    try:
+        res = pool.run()
+    finally:
+        pool.close()
+        bar.close()
+        rep.bar = None
+    return res

@@ -1,0 +1,262 @@
+"""``stb render --ray`` and ``stb validate --ray`` on a local Ray instance (one per
+module: ``ray.init(num_cpus=2)``): byte-identical frames, a worker killed mid-run,
+frames failing for a reason of the scene, the same validation findings as a local
+run, and the one-line errors (unreachable address, missing extra)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+ray = pytest.importorskip("ray", reason="the ray extra (make test installs it)")
+
+from stb_hydra.apps.cli import main as stb_main  # noqa: E402
+from stb_hydra.distributed import cluster  # noqa: E402
+from stb_hydra.distributed import render as dist_render  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+# 64x36, 8 frames; two lights move (time samples) so every frame differs.
+SCENE = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Y"
+    startTimeCode = 1
+    endTimeCode = 8
+)
+def Camera "Cam"
+{
+    float focalLength = 18
+    float horizontalAperture = 36
+    float verticalAperture = 20.25
+    double3 xformOp:translate = (0, 6, 14)
+    float xformOp:rotateX = -22
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
+}
+def Mesh "Ground"
+{
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
+    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
+}
+def Cube "Box"
+{
+    double size = 2
+    double3 xformOp:translate = (0, 1, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "Lamp"
+{
+    float inputs:intensity = 300
+    float inputs:radius = 0.1
+    double3 xformOp:translate.timeSamples = {1: (-4, 3, 2), 8: (4, 3, 2)}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "Lamp2"
+{
+    float inputs:intensity = 100
+    float inputs:radius = 0.1
+    double3 xformOp:translate.timeSamples = {1: (3, 2, -3), 8: (-3, 4, 3)}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+
+# stochastic lighting with two samples per frame: the seeds must follow the frame
+RENDER = ["--frames", "1:8", "--width", "64", "--height", "36", "--lighting", "stb"]
+RENDER += ["--accumulate", "2", "--quiet"]
+
+# OIIO stamps every EXR with the time it was written (capDate "YYYY:MM:DD HH:MM:SS").
+_DATETIME = re.compile(rb"capDate\x00string\x00\x13\x00\x00\x00[0-9: ]{19}")
+
+
+def _bytes(path: Path) -> bytes:
+    """The file's bytes with the capDate value blanked (two local renders differ
+    there and nowhere else)."""
+    data = path.read_bytes()
+    blanked, n = _DATETIME.subn(b"capDate\x00string\x00\x13\x00\x00\x00" + b"-" * 19, data)
+    assert n == 1, f"{path}: capDate attribute not found"
+    return blanked
+
+
+@pytest.fixture(scope="module")
+def local_ray():
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("ray_scene")
+    p = d / "anim.usda"
+    p.write_text(SCENE)
+    return p
+
+
+@pytest.fixture(scope="module")
+def local_frames(scene: Path, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("local_frames")
+    assert stb_main(["render", str(scene), str(out / "f.####.exr"), *RENDER]) == 0
+    assert len(list(out.glob("f.*.exr"))) == 8
+    return out
+
+
+def _same_frames(a: Path, b: Path) -> None:
+    names = sorted(p.name for p in a.glob("f.*.exr"))
+    assert names == sorted(p.name for p in b.glob("f.*.exr")) and len(names) == 8
+    for n in names:
+        assert _bytes(a / n) == _bytes(b / n), n
+
+
+def test_two_workers_render_byte_identical_frames(local_ray, scene, local_frames, tmp_path):
+    stats = tmp_path / "stats.json"
+    out = tmp_path / "f.####.exr"
+    rc = stb_main(["render", str(scene), str(out), *RENDER, "--ray", "--stats", str(stats)])
+    assert rc == 0
+    _same_frames(local_frames, tmp_path)
+    doc = json.loads(stats.read_text())
+    assert doc["ray"]["workers"] == 2
+    assert doc["ray"]["frames_done"] == 8 and doc["ray"]["retried"] == 0
+    assert [f["frame"] for f in doc["frames"]] == [float(i) for i in range(1, 9)]
+    # both workers took frames (handed out one at a time, not in fixed slices)
+    assert {f["worker"]["serial"] for f in doc["frames"]} == {1, 2}
+    assert doc["settings"]["lighting"] == "stb" and doc["renderer"]
+
+
+def test_a_worker_killed_mid_run_loses_no_frame(
+    local_ray, scene, local_frames, tmp_path, monkeypatch
+):
+    killed: list[int] = []
+
+    def kill_on_second_frame(pool, slot, index):
+        if not killed and slot.frames >= 1:  # it has rendered one: kill it in its next
+            killed.append(index)
+            ray.kill(slot.actor, no_restart=True)
+
+    monkeypatch.setattr(dist_render, "on_dispatch", kill_on_second_frame)
+    stats = tmp_path / "stats.json"
+    out = tmp_path / "f.####.exr"
+    rc = stb_main(["render", str(scene), str(out), *RENDER, "--ray", "--stats", str(stats)])
+    assert rc == 0 and killed
+    _same_frames(local_frames, tmp_path)
+    doc = json.loads(stats.read_text())["ray"]
+    assert doc["frames_done"] == 8 and doc["frames_failed"] == 0
+    assert doc["retried"] == 1 and doc["workers_lost"] == 1
+
+
+def test_scene_failures_are_reported_not_retried(local_ray, scene, tmp_path, capsys):
+    (tmp_path / "f.0005.exr").mkdir()  # frame 5 cannot be written: a directory is there
+    stats = tmp_path / "stats.json"
+    out = tmp_path / "f.####.exr"
+    rc = stb_main(["render", str(scene), str(out), *RENDER[:-1], "--ray", "--stats", str(stats)])
+    assert rc == 2
+    doc = json.loads(stats.read_text())["ray"]
+    assert doc["frames_done"] == 7 and doc["frames_failed"] == 1 and doc["retried"] == 0
+    assert doc["failures"][0]["frame"] == 5.0
+    assert "directory" in doc["failures"][0]["error"]
+    err = capsys.readouterr().err
+    assert "frame 5 failed" in err and "7 frames done, 1 failed, 0 retried" in err
+
+    # --skip-existing resumes: only the missing frame is rendered
+    (tmp_path / "f.0005.exr").rmdir()
+    rc = stb_main(
+        ["render", str(scene), str(out), *RENDER, "--ray", "--skip-existing", "--stats", str(stats)]
+    )
+    assert rc == 0
+    doc = json.loads(stats.read_text())["ray"]
+    assert doc["frames_done"] == 1 and doc["frames_skipped"] == 7
+
+
+def test_a_worker_that_cannot_set_up_says_why(local_ray, scene, tmp_path, capsys):
+    out = tmp_path / "f.####.exr"
+    rc = stb_main(["render", str(scene), str(out), *RENDER, "--ray", "--camera", "/Nope"])
+    assert rc == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("stb: error:")]
+    assert len(err) == 1 and "/Nope" in err[0] and "Ray worker on" in err[0]
+    assert not list(tmp_path.glob("f.*.exr"))
+
+
+def _library(root: Path, testdata: Path) -> Path:
+    """The validate test library (every planted problem, references, instancers)
+    plus copies of its prefabs: about 40 assets."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    from validate_fixtures import build_library
+
+    build_library(root, testdata / "ies")
+    copies = root / "copies"
+    copies.mkdir()
+    for p in sorted((root / "prefabs").glob("*.usda")):
+        shutil.copy(p, copies / p.name)
+    return root
+
+
+def _findings(doc: dict) -> list:
+    return [
+        (a["path"], sorted(json.dumps(f, sort_keys=True) for f in a["findings"]))
+        for a in doc["assets"]
+    ]
+
+
+def test_validate_on_ray_gives_the_local_findings(local_ray, testdata, tmp_path):
+    lib = _library(tmp_path / "lib", testdata)
+    loc, dist = tmp_path / "local.json", tmp_path / "ray.json"
+    common = ["validate", str(lib), "--library-root", str(lib), "--quiet"]
+    rc_local = stb_main([*common, "--jobs", "0", "--json", str(loc)])
+    rc_ray = stb_main([*common, "--ray", "--json", str(dist)])
+    assert rc_local == rc_ray == 1  # the planted problems are errors
+    a, b = json.loads(loc.read_text()), json.loads(dist.read_text())
+    assert len(a["assets"]) >= 40
+    assert _findings(a) == _findings(b)
+    assert sum(len(x["findings"]) for x in b["assets"]) > 40
+
+
+def test_unreachable_address_fails_fast_with_one_line(scene, tmp_path):
+    with socket.socket() as s:  # a free port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t0 = time.monotonic()
+    res = subprocess.run(
+        [sys.executable, "-m", "stb_hydra.apps.cli", "render", str(scene),
+         str(tmp_path / "f.####.exr"), *RENDER, "--ray", f"127.0.0.1:{port}"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    took = time.monotonic() - t0
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert lines == [
+        f"stb: error: cannot reach Ray cluster at 127.0.0.1:{port}: connection refused"
+    ]
+    assert took < 15
+
+
+def test_an_address_that_is_not_ray_times_out_in_seconds(monkeypatch):
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen()
+    conns = []
+    threading.Thread(target=lambda: conns.append(srv.accept()), daemon=True).start()
+    monkeypatch.setattr(cluster, "PROBE_TIMEOUT_S", 2.0)
+    t0 = time.monotonic()
+    with pytest.raises(cluster.CliError, match="no Ray GCS answered within 2 s"):
+        cluster.probe(f"127.0.0.1:{srv.getsockname()[1]}")
+    assert time.monotonic() - t0 < 8
+    srv.close()
+
+
+def test_without_the_extra_one_line(scene, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    rc = stb_main(["render", str(scene), str(tmp_path / "f.####.exr"), *RENDER, "--ray"])
+    assert rc == 2
+    assert capsys.readouterr().err.strip() == (
+        "stb: error: --ray needs the ray extra: pip install 'stb_hydra[ray]'"
+    )
