@@ -34,3 +34,12 @@ def gl_ctx():
     from stb_hydra.renderer.gl import get_context
 
     return get_context()
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """The random order's seed, also under ``-q`` (pytest-randomly prints it only in the
+    header, which ``-q`` hides): rerun a failing order with ``-p randomly
+    -p "randomly" --randomly-seed=N``."""
+    seed = getattr(config.option, "randomly_seed", None)
+    if seed is not None and getattr(config.option, "randomly_reorganize", True):
+        terminalreporter.write_line(f"test order: --randomly-seed={seed}")

@@ -22,17 +22,25 @@ def _index(stage, time=None):
 
 
 @pytest.fixture(scope="module")
-def big():
+def big_first_sync():
+    """The 10k-light stage, its indices, and what the first sync left (taken before any
+    test edits the shared stage, so the tests hold in any order)."""
     stage = many_lights_stage(10_000, animated=100, animated_group=True)
     si, ri = _index(stage, 1.0)
-    return stage, si, ri
+    first = (len(ri.delegate.lights), dict(ri.counters.by_type), si.counts_by_type())
+    return stage, si, ri, first
 
 
-def test_first_sync_creates_every_light(big):
-    _stage, si, ri = big
-    assert len(ri.delegate.lights) == 10_010
-    assert ri.counters.by_type["sphereLight"] == 10_010
-    assert si.counts_by_type() == {"sphereLight": 10_010}
+@pytest.fixture
+def big(big_first_sync):
+    return big_first_sync[:3]
+
+
+def test_first_sync_creates_every_light(big_first_sync):
+    n_lights, by_type, counts = big_first_sync[3]
+    assert n_lights == 10_010
+    assert by_type["sphereLight"] == 10_010
+    assert counts == {"sphereLight": 10_010}
 
 
 def test_intensity_edit_resyncs_exactly_one_light_params_only(big):
