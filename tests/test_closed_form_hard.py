@@ -376,3 +376,16 @@ def test_point_light_close_to_the_floor_is_inverse_square(gl_ctx):
     exp = RHO / math.pi * point_illuminance(pts, 5000 * math.pi * 0.01, lpos)
     rel = np.abs(img[..., 0] - exp) / exp
     assert rel.max() < 0.01, f"max relative error {rel.max():.4f}"
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_diffuse_multiplier_scales_every_method(gl_ctx, method):
+    """UsdLux ``inputs:diffuse`` scales the diffuse response: 0.25 gives a quarter of
+    the plain point-light value (specular is off), in every method's own shader."""
+    lpos = (0.3, 2.0, -0.2)
+    stage = floor_stage(local_light("SphereLight", lpos, extra="float inputs:diffuse = 0.25"))
+    img = render(stage, method)
+    pts = ground_points(stage)
+    exp = 0.25 * RHO / math.pi * point_illuminance(pts, 1000 * math.pi * 0.01, lpos)
+    rel = np.abs(img[..., 0] - exp) / exp
+    assert rel.max() < 0.01, f"{method}: max relative error {rel.max():.4f}"
