@@ -133,6 +133,36 @@ def test_two_workers_render_byte_identical_frames(local_ray, scene, local_frames
     assert doc["settings"]["lighting"] == "stb" and doc["renderer"]
 
 
+def test_a_worker_renders_frames_in_any_order_like_the_local_render(repo, tmp_path):
+    """In process (no Ray), the courtyard at 745x360 (its shadow atlas keeps state
+    between frames: without the worker rendering --frames' first frame first, frames
+    2 and 4 differ): a worker whose first frame is not the first of --frames, and an
+    earlier frame after a later one (a retry: the engine is rebuilt), still writes the
+    local render's files."""
+    from stb_hydra.apps.cli import build_parser
+
+    scene = str(repo / "usd_scenes" / "default.usda")
+    flags = ["--frames", "1:4", "--width", "745", "--height", "360", "--lighting", "stb"]
+    local, dist = tmp_path / "local", tmp_path / "ray"
+    local.mkdir()
+    dist.mkdir()
+    assert stb_main(["render", scene, str(local / "f.####.exr"), *flags, "--quiet"]) == 0
+    args = build_parser().parse_args(["render", scene, str(dist / "f.####.exr"), *flags])
+    args.ray = ""
+    w = dist_render.RenderWorker(dist_render._job(args, 1.0, 1))
+    order = (1, 3, 0)
+    try:
+        assert w.ready()["error"] is None
+        for i in order:
+            res = w.render(i, float(i + 1), str(dist / f"f.{i + 1:04d}.exr"))
+            assert "record" in res, res
+    finally:
+        w.close()
+    for i in order:
+        n = f"f.{i + 1:04d}.exr"
+        assert _bytes(local / n) == _bytes(dist / n), n
+
+
 def test_a_worker_killed_mid_run_loses_no_frame(
     local_ray, scene, local_frames, tmp_path, monkeypatch
 ):

@@ -79,18 +79,29 @@ class RenderWorker:
         self.args = args
         self.rep = Reporter("stb render", quiet=True).__enter__()
         self.aovs = r._check_settings(args)
-        stage = open_stage(args.scene)
+        self.stage = open_stage(args.scene)
         self.rep.drain_usd(os.path.dirname(args.scene))
         self.pipeline = r._color_pipeline(args)
-        settings = r._render_settings(args)
-        self.eng = r._build_engine(stage, settings, self.pipeline, job["first"])
-        r._check_image_size(self.eng)
+        self.settings = r._render_settings(args)
+        self.first = job["first"]
         self.ext = os.path.splitext(args.output)[1].lower()
+        self._build()
+        r._check_image_size(self.eng)
+        self.rep.warn_all(self.eng.warnings)
+        self.stats = r._stats_header(args, self.eng, self.settings, self.pipeline)
+        self.samples = max(1, int(self.settings.accumulate))
+
+    def _build(self) -> None:
+        """The engine at the first frame; ``started`` False: nothing rendered yet."""
+        from ..apps import render as r
+
+        if self.eng is not None:
+            self.eng.release()
+            self.eng = None
+        self.eng = r._build_engine(self.stage, self.settings, self.pipeline, self.first)
         want = set(self.aovs) | ({"display"} if self.ext in (".png", ".jpg", ".jpeg") else set())
         self.eng.request_aovs(want)
-        self.rep.warn_all(self.eng.warnings)
-        self.stats = r._stats_header(args, self.eng, settings, self.pipeline)
-        self.samples = max(1, int(settings.accumulate))
+        self.started = False
 
     def _new_warnings(self) -> list[str]:
         lines = self.rep.lines[self.sent :] if self.eng is not None else []
@@ -113,8 +124,17 @@ class RenderWorker:
         from ..renderer.engine import RenderError
 
         t_start = _time.perf_counter()
-        eng, rep = self.eng, self.rep
         try:
+            if self.started and index * self.samples < self.eng.frame_index:
+                self._build()  # an earlier frame (a retry): frame counters only increase
+            eng, rep = self.eng, self.rep
+            if not self.started and index != 0:
+                # The engine keeps state between frames (shadow atlas and scheduler): a
+                # local render starts at --frames' first frame, and so does this one
+                # (rendered once, not written) before its first frame elsewhere.
+                eng.frame_index = 0
+                eng.render(self.first)
+            self.started = True
             eng.frame_index = index * self.samples  # the seeds of a local render
             t0 = _time.perf_counter()
             frame = eng.render(fr)
@@ -458,7 +478,7 @@ def _render_on(
     )
     if not bar.disable:
         rep.bar = bar
-    job = _job(args, frames[todo[0]], int(resources["num_cpus"]))
+    job = _job(args, frames[0], int(resources["num_cpus"]))
     pool = _Pool(ray, job, todo, frames, outputs, n, resources, rep, lambda: bar.update(1))
     try:
         res = pool.run()
