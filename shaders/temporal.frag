@@ -15,7 +15,7 @@
 //    of single noisy pixels: a lone pixel that missed a light does not collapse the
 //    box), clip towards the mean (not a per-channel clamp);
 //  * blending: 1/n with a per-pixel history length n (alpha channel) up to
-//    u_max_len, in scene-linear units (an exposure change scales history, current
+//    u_max_len (longer, with a wider box, where the surface has not moved), in scene-linear units (an exposure change scales history, current
 //    and box alike, so the blend does not depend on the exposure);
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
@@ -33,8 +33,8 @@ uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2n
 uniform mat4 u_prev_view;      // previous world -> view
 uniform vec2 u_jitter;         // this frame's jitter (px, image content shift)
 uniform float u_reset;         // 1: ignore the history
-uniform float u_max_len;       // history length cap (frames)
-uniform float u_gamma;         // clip box half extent in standard deviations
+uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
+uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 // Lights that changed a lot this frame: within a sphere (centre, radius: its
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
@@ -107,11 +107,15 @@ void main() {
     vec3 m1 = vec3(0.0);
     vec3 m2 = vec3(0.0);
     float wsum = 0.0;
-    float slope = 0.0;
+    float nd[9];
+    vec3 nn[9];
     for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         float dq = texelFetch(u_depth, q, 0).r;
-        if (i <= 8) slope = max(slope, abs(dq - d));  // 3x3: jitter moves edges by < 1 px
+        if (i <= 8) {  // the 3x3 surfaces (jitter moves edges by < 1 px)
+            nd[i] = dq;
+            nn[i] = oct_decode(texelFetch(u_normal, q, 0).xy);
+        }
         float w = abs(dq - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
         vec3 c = texelFetch(u_current, q, 0).rgb / albedo_at(q);
         m1 += w * c;
@@ -126,7 +130,12 @@ void main() {
     vec2 mv = texelFetch(u_motion, ip, 0).xy - u_jitter;
     vec2 pos = gl_FragCoord.xy - mv;
     float prev_d = d;
-    float max_len = u_max_len;
+    // A pixel whose surface has not moved (< 0.5 px) keeps a longer history and a
+    // wider box: with a still camera the box only has to catch what the light
+    // caps and disocclusion miss, and every clip of noisy input is a bias.
+    float still = clamp(1.0 - 2.0 * length(mv), 0.0, 1.0);
+    float gamma = mix(u_gamma.x, u_gamma.y, still);
+    float max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     if (d > 0.0) {
         vec3 world = world_pos_from_depth(gl_FragCoord.xy, d);
         prev_d = max(-(u_prev_view * vec4(world, 1.0)).z, 1e-6);
@@ -136,7 +145,8 @@ void main() {
             }
         }
     }
-    float tol = 0.03 * prev_d + slope + 1e-4;
+    float tol = 0.03 * prev_d + 1e-4;
+    float shift = prev_d - d;  // this surface's depth change, applied to its neighbours
     vec2 base = floor(pos - 0.5);
     vec2 f = pos - 0.5 - base;
     float valid_w = 0.0;
@@ -152,7 +162,14 @@ void main() {
         if (d <= 0.0) {
             same = g.x <= 0.0;
         } else {
-            same = g.x > 0.0 && abs(g.x - prev_d) <= tol && dot(oct_decode(g.yz), n) > -0.5;
+            vec3 gn = oct_decode(g.yz);
+            same = g.x > 0.0 && abs(g.x - prev_d) <= tol && dot(gn, n) > -0.5;
+            // Else: is it a surface of this 3x3 neighbourhood (depth and normal),
+            // seen through another jitter offset at an edge? Not a disocclusion.
+            for (int j = 0; j < 9 && !same && g.x > 0.0; ++j) {
+                same = nd[j] > 0.0 && abs(g.x - (nd[j] + shift)) <= 0.03 * g.x + 1e-4
+                       && dot(gn, nn[j]) > 0.9;
+            }
         }
         if (!same) continue;
         vec4 h = texelFetch(u_history, t, 0);
@@ -165,7 +182,10 @@ void main() {
         hist_len += w * h.a;
     }
 
-    vec3 result = cur;
+    // History fix: a pixel with a short history (disoccluded, or capped by a light
+    // change) takes the neighbourhood mean instead of its own noisy sample for its
+    // first frames (full weight at n = 1, none from n = 5 on).
+    vec3 result = m1;
     float len = 1.0;
     float lc = luma(cur);
     float tm2 = lc * lc;
@@ -178,10 +198,10 @@ void main() {
         mom2 /= valid_w;
         float lh = luma(h);
         float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
-        vec3 ext = u_gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
+        vec3 ext = gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
         len = min(floor(hist_len / valid_w + 0.5) + 1.0, max_len);
-        result = mix(h, cur, 1.0 / len);
+        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, 1.0)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);
     }
     o_history = vec4(result, len);

@@ -1,5 +1,7 @@
 """Image-quality metrics of the trade-off study: relMSE, FLIP, temporal instability,
-and what a person sees of noise (structured noise, HDR-FLIP at mid grey)."""
+and what a person sees of noise (structured noise, HDR-FLIP at mid grey); per-frame
+metrics of moving sequences (``sequence``: per-frame HDR-FLIP, instability over the
+reference's own, ghosting)."""
 
 from .image import (
     RELMSE_EPS,
@@ -13,6 +15,7 @@ from .image import (
     temporal_excess,
     temporal_instability,
 )
+from .sequence import frames_to_settle, instability_ratio, per_frame_flip, region_error
 from .structure import (
     flip_hdr_midgrey,
     relative_error,
@@ -28,6 +31,10 @@ __all__ = [
     "flip_hdr",
     "flip_hdr_midgrey",
     "flip_ldr",
+    "frames_to_settle",
+    "instability_ratio",
+    "per_frame_flip",
+    "region_error",
     "relative_error",
     "relmse",
     "relmse_map",
