@@ -47,6 +47,9 @@ def render(
     ``lighting`` is a method name (``stb_hydra.renderer.lighting.METHODS``);
     ``accumulate`` averages that many frames with distinct seeds derived from
     ``seed``; ``ambient`` adds a uniform white dome (nits), e.g. for thumbnails.
+    ``temporal="taa"`` (a ``RenderSettings`` field) feeds the ``accumulate`` frames
+    through the reprojecting temporal pass (with subpixel jitter) instead of
+    averaging them; ``"off"`` shows the last frame alone.
     Other keywords are ``RenderSettings`` fields (``shadows``, ``shadow_budget``
     (default None: every shadow map captured before the frame)...) or, failing that,
     options of the lighting method (e.g. ``N=4`` for stb), validated by its schema.

@@ -67,6 +67,14 @@ def add_parser(sub) -> None:
         help="lighting method (default reference)",
     )
     p.add_argument("--accumulate", type=int, default=1, help="frames averaged per image")
+    p.add_argument(
+        "--temporal",
+        choices=("accumulate", "taa", "off"),  # renderer.frame.TEMPORAL_MODES
+        default="accumulate",
+        help="temporal reuse: accumulate (average the --accumulate frames of each image: a "
+        "still camera; default), taa (reprojected history kept across --frames, with "
+        "subpixel jitter: a moving camera or animated objects), off (no reuse)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed of stochastic methods")
     p.add_argument("--ocio-config", help="OCIO config (default: $OCIO, else OCIO's studio config)")
     p.add_argument("--display", help="OCIO display (default: the config's default)")
@@ -284,6 +292,7 @@ def _render_settings(args: argparse.Namespace):
         lighting=args.lighting,
         seed=args.seed,
         accumulate=args.accumulate,
+        temporal=args.temporal,
         ambient=args.ambient,
         profile=bool(args.stats),
         shadows=not args.no_shadows,
@@ -315,6 +324,7 @@ def _stats_header(args: argparse.Namespace, eng, settings, pipeline) -> dict:
             "height": settings.height,
             "lighting": settings.lighting,
             "accumulate": settings.accumulate,
+            "temporal": settings.temporal,
             "seed": settings.seed,
             "camera": eng.camera_path or "(free camera)",
             "display": pipeline.display,
