@@ -107,15 +107,9 @@ void main() {
     vec3 m1 = vec3(0.0);
     vec3 m2 = vec3(0.0);
     float wsum = 0.0;
-    float nd[9];
-    vec3 nn[9];
     for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         float dq = texelFetch(u_depth, q, 0).r;
-        if (i <= 8) {  // the 3x3 surfaces (jitter moves edges by < 1 px)
-            nd[i] = dq;
-            nn[i] = oct_decode(texelFetch(u_normal, q, 0).xy);
-        }
         float w = abs(dq - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
         vec3 c = texelFetch(u_current, q, 0).rgb / albedo_at(q);
         m1 += w * c;
@@ -166,9 +160,13 @@ void main() {
             same = g.x > 0.0 && abs(g.x - prev_d) <= tol && dot(gn, n) > -0.5;
             // Else: is it a surface of this 3x3 neighbourhood (depth and normal),
             // seen through another jitter offset at an edge? Not a disocclusion.
-            for (int j = 0; j < 9 && !same && g.x > 0.0; ++j) {
-                same = nd[j] > 0.0 && abs(g.x - (nd[j] + shift)) <= 0.03 * g.x + 1e-4
-                       && dot(gn, nn[j]) > 0.9;
+            // (Fetched here, not kept from the statistics loop: only edge pixels
+            // get this far, and arrays indexed in loops are slow on llvmpipe.)
+            for (int j = 1; j < 9 && !same && g.x > 0.0; ++j) {
+                ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
+                float dj = texelFetch(u_depth, q, 0).r;
+                same = dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4
+                       && dot(gn, oct_decode(texelFetch(u_normal, q, 0).xy)) > 0.9;
             }
         }
         if (!same) continue;

@@ -239,3 +239,21 @@ def test_halton_jitter_and_camera_cut():
 def test_temporal_setting_is_checked():
     with pytest.raises(ValueError, match="temporal must be one of"):
         RenderSettings(temporal="blur")
+
+
+def test_sequence_metrics():
+    """Per-frame metrics: identical sequences score 0 / 1x; a region's error and the
+    frames it takes to settle."""
+    rng = np.random.default_rng(3)
+    ref = rng.uniform(0.1, 1.0, (4, 8, 8, 3))
+    assert np.allclose(per_frame_flip(ref, ref), 0.0)
+    assert instability_ratio(ref, ref) == pytest.approx(1.0)
+    mask = np.zeros((8, 8), bool)
+    mask[:4] = True
+    test = ref.copy()
+    test[0, :4] *= 2.0  # frame 0 wrong in the region only
+    err = region_error(test, ref, mask)
+    assert err[0] > 0.5 and np.allclose(err[1:], 0.0)
+    assert frames_to_settle(err, 0.1) == 1
+    assert frames_to_settle([0.5, 0.5, 0.5], 0.1) == 4
+    assert frames_to_settle([0.0, 0.0], 0.1) == 0

@@ -1,0 +1,54 @@
+"""Cost of the taa pass in an STB frame (llvmpipe or a GPU): per-pass wall times
+with ``ctx.finish()`` after every pass (``RenderSettings.profile``), medians over
+frames after a warm-up, for --temporal taa and accumulate.
+
+    .venv/bin/python tools/taa_cost.py usd_scenes/default.usda --width 745 --height 360
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+
+#: Timing keys that are not passes (phases, sub-pass scopes).
+_NOT_PASSES = ("sync", "commit", "prepare")
+
+
+def frame_ms(stage: str, w: int, h: int, temporal: str, frames: int, warmup: int):
+    s = RenderSettings(width=w, height=h, lighting="stb", temporal=temporal, profile=True)
+    eng = Engine(stage, s)
+    try:
+        for _ in range(frames):
+            eng.render()
+        med = eng.timings.medians(skip=warmup)
+    finally:
+        eng.release()
+    passes = {k: v for k, v in med.items() if not k.startswith(_NOT_PASSES) and "." not in k}
+    return med, passes
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("stage")
+    ap.add_argument("--width", type=int, default=745)
+    ap.add_argument("--height", type=int, default=360)
+    ap.add_argument("--frames", type=int, default=24)
+    ap.add_argument("--warmup", type=int, default=6)
+    a = ap.parse_args(argv)
+    for temporal in ("taa", "accumulate"):
+        _med, passes = frame_ms(a.stage, a.width, a.height, temporal, a.frames, a.warmup)
+        total = sum(passes.values())
+        key = "temporal" if temporal == "taa" else "accumulate"
+        share = passes.get(key, 0.0) / max(total, 1e-9)
+        print(
+            f"{temporal:10s} passes {total:7.1f} ms  {key} {passes.get(key, 0.0):6.2f} ms "
+            f"({100 * share:.1f} %)  lighting {passes.get('lighting', 0.0):6.1f} ms"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
