@@ -236,9 +236,14 @@ class _Pool:
         if on_dispatch is not None:
             on_dispatch(self, slot, i)
 
+    def _busy(self) -> bool:
+        """Frames in flight, or frames queued and a worker still starting."""
+        kinds = [k for k, _ in self.refs.values()]
+        return "frame" in kinds or (bool(self.queue) and "ready" in kinds)
+
     def run(self) -> RunResult:
         ray = self.ray
-        while self.refs:
+        while self._busy():
             done, _ = ray.wait(list(self.refs), num_returns=1)
             kind, slot = self.refs.pop(done[0])
             try:
@@ -279,7 +284,7 @@ class _Pool:
         self.rep.warn_all(msg.get("warnings", ()))
         if "error" in msg:
             self.res.failed[i] = str(msg["error"])
-            self.rep.say(f"stb render: frame {_label(self.frames[i])} failed: {msg['error']}")
+            _error(self.rep, f"stb render: frame {_label(self.frames[i])} failed: {msg['error']}")
         else:
             rec = msg["record"]
             rec["worker"] = {"serial": slot.serial, "host": slot.host}
@@ -294,14 +299,17 @@ class _Pool:
         slot.alive = False
         self.res.workers_lost += 1
         why = " ".join(str(exc).split())[:200]
+        if not slot.ready:
+            self.res.setup_errors.append(f"Ray worker {slot.serial} died while starting: {why}")
         i = slot.index
         slot.index = -1
         if i >= 0:
             n = self.attempts[i] = self.attempts.get(i, 1) + 1
             if n > MAX_ATTEMPTS:
                 self.res.failed[i] = f"its worker died {MAX_ATTEMPTS} times (last: {why})"
-                self.rep.say(
-                    f"stb render: frame {_label(self.frames[i])} failed: {self.res.failed[i]}"
+                _error(
+                    self.rep,
+                    f"stb render: frame {_label(self.frames[i])} failed: {self.res.failed[i]}",
                 )
                 self.tick()
             else:
@@ -324,6 +332,14 @@ class _Pool:
                     self.ray.kill(s.actor)
                 except Exception:  # noqa: BLE001 - best effort at the end
                     pass
+
+
+def _error(rep: Reporter, text: str) -> None:
+    """A line that ``--quiet`` does not silence (a frame that failed)."""
+    if rep.quiet:
+        print(text, file=sys.stderr, flush=True)
+    else:
+        rep.say(text)
 
 
 def _task_error(exc: BaseException) -> str:
@@ -363,13 +379,20 @@ def _worker_resources(args: argparse.Namespace, total: dict[str, float]) -> dict
 
 
 def _n_workers(args: argparse.Namespace, res: dict[str, float], total: dict, todo: int) -> int:
+    """``--workers``, or as many as the cluster fits; never more than fit (an actor
+    that can never be placed would wait for ever) nor more than the frames."""
+    cpus, gpus = total.get("CPU", 0.0), total.get("GPU", 0.0)
+    if res["num_cpus"] > cpus:
+        raise CliError(f"--worker-cpus {res['num_cpus']:g}: the Ray cluster has {cpus:g} CPUs")
+    fits = int(cpus // res["num_cpus"])
+    if res.get("num_gpus"):
+        if res["num_gpus"] > gpus:
+            raise CliError(f"--worker-gpus {res['num_gpus']:g}: the Ray cluster has {gpus:g} GPUs")
+        fits = min(fits, int(gpus // res["num_gpus"]))
     if args.workers is not None:
         if args.workers < 1:
             raise CliError(f"--workers must be >= 1, got {args.workers}")
-        return min(args.workers, todo)
-    fits = int(total.get("CPU", 1.0) // max(res["num_cpus"], 1e-9))
-    if res.get("num_gpus"):
-        fits = min(fits, int(total.get("GPU", 0.0) // res["num_gpus"]))
+        fits = min(fits, args.workers)
     return max(1, min(fits, todo))
 
 
