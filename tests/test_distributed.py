@@ -128,8 +128,7 @@ def test_two_workers_render_byte_identical_frames(local_ray, scene, local_frames
     assert doc["ray"]["workers"] == 2
     assert doc["ray"]["frames_done"] == 8 and doc["ray"]["retried"] == 0
     assert [f["frame"] for f in doc["frames"]] == [float(i) for i in range(1, 9)]
-    # both workers took frames (handed out one at a time, not in fixed slices)
-    assert {f["worker"]["serial"] for f in doc["frames"]} == {1, 2}
+    # (which worker renders which frame depends on which is free: not asserted)
     assert doc["settings"]["lighting"] == "stb" and doc["renderer"]
 
 
@@ -248,6 +247,24 @@ def test_validate_on_ray_gives_the_local_findings(local_ray, testdata, tmp_path)
     assert len(a["assets"]) >= 40
     assert _findings(a) == _findings(b)
     assert sum(len(x["findings"]) for x in b["assets"]) > 40
+
+
+def test_validate_on_ray_a_crashing_asset_is_a_crash_finding(local_ray, tmp_path, monkeypatch):
+    from stb_hydra.validate.common import CRASH_HOOK_ENV
+    from stb_hydra.validate.synth import clean_prefab
+
+    lib = tmp_path / "lib"
+    for name in ("a_ok", "b_segv_me", "c_ok"):
+        clean_prefab(2).write(lib / f"{name}.usda")
+    monkeypatch.setenv(CRASH_HOOK_ENV, "segv:segv_me")
+    out = tmp_path / "r.json"
+    rc = stb_main(["validate", str(lib), "--ray", "--quiet", "--json", str(out)])
+    assert rc == 1
+    by = {Path(a["path"]).stem: a for a in json.loads(out.read_text())["assets"]}
+    assert by["b_segv_me"]["status"] == "crash"
+    assert [f["rule"] for f in by["b_segv_me"]["findings"]] == ["crash"]
+    assert "Ray worker died" in by["b_segv_me"]["findings"][0]["message"]
+    assert by["a_ok"]["status"] == by["c_ok"]["status"] == "ok"
 
 
 def test_unreachable_address_fails_fast_with_one_line(scene, tmp_path):

@@ -44,8 +44,20 @@ def _setup() -> None:
     _READY = True
 
 
-def validate_one(path: str, root: str, rules: list[str] | None, thumbnails: bool) -> dict:
-    """One asset's report (a dict: :meth:`AssetReport.to_dict`), in a Ray worker."""
+def validate_one(
+    path: str, root: str, rules: list[str] | None, thumbnails: bool, hook: str | None = None
+) -> dict:
+    """One asset's report (a dict: :meth:`AssetReport.to_dict`), in a Ray worker.
+    ``hook``: the driver's test crash hook (``validate.common.CRASH_HOOK_ENV``), which
+    Ray workers started before it was set do not inherit."""
+    import os
+
+    from ..validate.common import CRASH_HOOK_ENV
+
+    if hook:
+        os.environ[CRASH_HOOK_ENV] = hook
+    else:
+        os.environ.pop(CRASH_HOOK_ENV, None)
     _setup()
     from ..validate.runner import Selection, validate_in_process
 
@@ -68,8 +80,13 @@ def run_on_ray(
 ) -> tuple[list[Any], int]:
     """Validate ``(path, library_root)`` tasks on Ray; (reports in task order, the
     number of assets kept in flight: the cluster's CPUs unless ``in_flight``)."""
+    import os
+
+    from ..validate.common import CRASH_HOOK_ENV
     from ..validate.findings import AssetReport
     from ..validate.runner import crash_report
+
+    hook = os.environ.get(CRASH_HOOK_ENV) or None
 
     results: list[Any] = [None] * len(tasks)
     with connected(address) as ray:
@@ -83,7 +100,7 @@ def run_on_ray(
             while pending and len(running) < n:
                 i = pending.pop()
                 path, root = tasks[i]
-                running[fn.remote(path, root, rules, thumbnails)] = (i, time.monotonic())
+                running[fn.remote(path, root, rules, thumbnails, hook)] = (i, time.monotonic())
 
         def finish(i: int, rep: Any) -> None:
             results[i] = rep
