@@ -266,9 +266,8 @@ class _Pool:
         slot.host = msg.get("host", "?")
         if msg.get("error"):
             slot.alive = False
-            err = f"Ray worker on {slot.host}: {msg['error']}"
-            self.res.setup_errors.append(err)
-            self.rep.say(f"stb render: {err}")
+            # said at the end (once) when other workers ran, else the run's error
+            self.res.setup_errors.append(f"Ray worker on {slot.host}: {msg['error']}")
             self.ray.kill(slot.actor)
             return
         slot.ready = True
@@ -509,4 +508,7 @@ def _render_on(
         pool.close()
         bar.close()
         rep.bar = None
+    if res.header is not None:
+        for err in dict.fromkeys(res.setup_errors):
+            rep.say(f"stb render: {err}")
     return res
