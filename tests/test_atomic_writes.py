@@ -54,3 +54,18 @@ def test_validate_json_failing_midway(tmp_path):
     with pytest.raises(TypeError):
         write_json(str(p), doc)
     _intact(tmp_path, p)
+
+
+class _Unprintable:
+    def __str__(self) -> str:
+        raise RuntimeError("cannot format")
+
+
+def test_tradeoff_csv_failing_midway(tmp_path):
+    from stb_hydra.apps.tradeoff import write_csv
+
+    p = _old(tmp_path, "tradeoff.csv")
+    rows = [{"label": "x" * 1000, "v": i} for i in range(300)] + [{"label": _Unprintable()}]
+    with pytest.raises(RuntimeError):
+        write_csv(rows, p, ["label", "v"])
+    _intact(tmp_path, p)

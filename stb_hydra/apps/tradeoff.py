@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.files import write_text_atomic
 from .common import EXIT_OK, CliError, fail, open_stage
 
 STB_N = (1, 2, 4)
@@ -531,7 +532,7 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
                 f"| {r['label']} | {float(r['frame_ms']):.1f} | {float(r['lighting_ms']):.1f} | "
                 f"{float(r['relmse']):.3g} | {float(r['flip']):.4f} | {r['dropped_median']:g} |"
             )
-    path.write_text("\n".join(lines) + "\n")
+    write_text_atomic(path, "\n".join(lines) + "\n")
 
 
 def read_rows(path: Path) -> list[dict]:
@@ -554,12 +555,16 @@ def read_rows(path: Path) -> list[dict]:
 
 def write_csv(rows: list[dict], path: Path, fields: list[str]) -> None:
     tmp = path.with_suffix(".csv.tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
+            w.writeheader()
+            for r in rows:
+                w.writerow(r)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def command_line(args) -> str:
@@ -625,7 +630,7 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
         "command": command_line(args),
         "eps": args.eps,
     }
-    (out / "tradeoff.json").write_text(json.dumps({**meta, "name": name}, indent=2))
+    write_text_atomic(out / "tradeoff.json", json.dumps({**meta, "name": name}, indent=2))
     finish_report(rows, out, meta, name, args.budgets)
     print(
         f"stb tradeoff: wrote {out / 'tradeoff.csv'}, {out / 'pareto.png'}, {out / 'report.md'}",
@@ -790,7 +795,7 @@ def run_sweep(args) -> list[dict]:
             cells.append(f"{float(r['frame_ms']):.0f}{err}")
         fov = next((r["fov_lights"] for r in rows if r["lights"] == n), n)
         lines.append(f"| {n} ({fov}) | " + " | ".join(cells) + " |")
-    (out / "sweep.md").write_text("\n".join(lines) + "\n")
+    write_text_atomic(out / "sweep.md", "\n".join(lines) + "\n")
     print(
         f"stb tradeoff: wrote {out / 'sweep.csv'}, {out / 'frame_time_vs_lights.png'}",
         file=sys.stderr,
