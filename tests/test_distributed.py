@@ -180,6 +180,25 @@ def test_a_worker_killed_mid_run_loses_no_frame(
     _same_frames(local_frames, tmp_path)
     doc = json.loads(stats.read_text())["ray"]
     assert doc["frames_done"] == 8 and doc["frames_failed"] == 0
+    assert doc["workers_lost"] == 1
+    # killed within ms of the call: its frame is lost (retried) unless it was done first
+    assert doc["retried"] in (0, 1)
+
+
+def test_a_worker_exiting_mid_frame_has_its_frame_rerun(
+    local_ray, scene, local_frames, tmp_path, monkeypatch
+):
+    """A worker process that exits after rendering frame 4 and before writing it (the
+    test hook; as a crash would): frame 4 is rendered again by another worker."""
+    marker = tmp_path / "exited"
+    monkeypatch.setattr(dist_render, "exit_mid_frame", {"index": 3, "marker": str(marker)})
+    stats = tmp_path / "stats.json"
+    out = tmp_path / "f.####.exr"
+    rc = stb_main(["render", str(scene), str(out), *RENDER, "--ray", "--stats", str(stats)])
+    assert rc == 0 and marker.exists()
+    _same_frames(local_frames, tmp_path)
+    doc = json.loads(stats.read_text())["ray"]
+    assert doc["frames_done"] == 8 and doc["frames_failed"] == 0
     assert doc["retried"] == 1 and doc["workers_lost"] == 1
 
 

@@ -39,6 +39,9 @@ from .cluster import cluster_resources, connected
 MAX_ATTEMPTS = 3
 #: Test hook: called as ``hook(pool, worker, index)`` right after a frame is dispatched.
 on_dispatch: Callable[[Any, Any, int], None] | None = None
+#: Test hook: ``{"index": i, "marker": path}``: the first worker to render frame ``i``
+#: (the one that creates ``marker``) exits between rendering and writing it.
+exit_mid_frame: dict[str, Any] | None = None
 
 # argparse values that travel to the workers (everything the render steps read).
 _SKIP_ARGS = {"func", "reporter", "ray", "workers", "worker_gpus", "worker_cpus"}
@@ -90,6 +93,7 @@ class RenderWorker:
         self.rep.warn_all(self.eng.warnings)
         self.stats = r._stats_header(args, self.eng, self.settings, self.pipeline)
         self.samples = max(1, int(self.settings.accumulate))
+        self.exit_mid_frame = job.get("exit_mid_frame")
 
     def _build(self) -> None:
         """The engine at the first frame; ``started`` False: nothing rendered yet."""
@@ -139,6 +143,7 @@ class RenderWorker:
             t0 = _time.perf_counter()
             frame = eng.render(fr)
             wall = (_time.perf_counter() - t0) * 1e3
+            _maybe_exit(self.exit_mid_frame, index)
             rep.warn_all(eng.warnings)
             rep.drain_usd()
             r._warn_empty_view(eng, rep)
@@ -333,6 +338,18 @@ class _Pool:
                     pass
 
 
+def _maybe_exit(hook: dict[str, Any] | None, index: int) -> None:
+    """The :data:`exit_mid_frame` test hook, in the worker."""
+    if not hook or hook.get("index") != index:
+        return
+    try:
+        fd = os.open(hook["marker"], os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+    except FileExistsError:
+        return
+    os.close(fd)
+    os._exit(1)
+
+
 def _error(rep: Reporter, text: str) -> None:
     """A line that ``--quiet`` does not silence (a frame that failed)."""
     if rep.quiet:
@@ -363,7 +380,7 @@ def _job(args: argparse.Namespace, first: float | None, threads: int) -> dict[st
     values["stats"] = None  # written by the driver
     values["quiet"] = True
     values["print_graph"] = False
-    return {"args": values, "first": first, "threads": threads}
+    return {"args": values, "first": first, "threads": threads, "exit_mid_frame": exit_mid_frame}
 
 
 def _worker_resources(args: argparse.Namespace, total: dict[str, float]) -> dict[str, float]:
