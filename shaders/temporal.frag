@@ -47,7 +47,7 @@ layout(location = 1) out vec4 o_history;
 layout(location = 2) out vec4 o_geo;
 
 float luma(vec3 c) {
-    return dot(c, vec3(0.2126, 0.7152, 0.0722));
+    return dot(c, LUMINANCE_REC709);
 }
 
 vec3 albedo_at(ivec2 px) {
