@@ -317,6 +317,14 @@ MUTANTS: tuple[Mutant, ...] = (
         CLOSED,
         "stb: the emission lobe evaluated towards the light instead of away from it",
     ),
+    Mutant(
+        "tradeoff_csv_tmp_left",
+        "stb_hydra/apps/tradeoff.py",
+        "        tmp.unlink(missing_ok=True)\n        raise",
+        "        raise",
+        ("tests/test_atomic_writes.py",),
+        "stb tradeoff: the CSV's temporary file left behind on failure",
+    ),
 )
 
 
