@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pxr import Usd
+from pxr import Gf, Usd, UsdGeom
 from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
 
 from stb_hydra.metrics import (
@@ -257,3 +257,24 @@ def test_sequence_metrics():
     assert frames_to_settle(err, 0.1) == 1
     assert frames_to_settle([0.5, 0.5, 0.5], 0.1) == 4
     assert frames_to_settle([0.0, 0.0], 0.1) == 0
+
+
+def test_taa_history_spans_render_calls(repo):
+    """A --frames sequence is one engine rendering time after time: with taa the
+    history carries over between ``Engine.render`` calls (no reset for a 1 degree
+    move), and a jump of the camera far away is a cut."""
+    stage = _orbit(repo, 3)
+    eng = Engine(stage, RenderSettings(width=64, height=36, lighting="stb", temporal="taa"))
+    try:
+        resets = []
+        for t in (1, 2, 3):
+            eng.render(time=t)
+            resets.append(eng.temporal.last_reset)
+        assert resets == ["start", "", ""]
+        assert eng.temporal.count == 3
+        cam = UsdGeom.Xformable(stage.GetPrimAtPath("/Camera"))
+        cam.GetOrderedXformOps()[0].Set(Gf.Matrix4d().SetTranslate(Gf.Vec3d(0, 50, 0)), 4)
+        eng.render(time=4)
+        assert eng.temporal.last_reset == "cut"
+    finally:
+        eng.release()
