@@ -24,10 +24,10 @@ from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.scenegen.orbit import orbit_camera
 
 
-def orbit_stage(path: str, frames: int, degrees: float) -> Usd.Stage:
+def orbit_stage(path: str, frames: int, degrees: float, pivot: float = 12.0) -> Usd.Stage:
     stage = Usd.Stage.Open(path)
     stage.SetEditTarget(stage.GetSessionLayer())
-    orbit_camera(stage, frames, degrees)
+    orbit_camera(stage, frames, degrees, pivot)
     return stage
 
 
@@ -67,10 +67,13 @@ def main(argv=None) -> int:
     ap.add_argument("--width", type=int, default=320)
     ap.add_argument("--height", type=int, default=180)
     ap.add_argument("--degrees", type=float, default=1.0)
+    ap.add_argument(
+        "--pivot", type=float, default=12.0, help="orbit about the ground point this far ahead (m)"
+    )
     ap.add_argument("--skip", type=int, default=8, help="frames left out of the medians")
     ap.add_argument("--strip", help="write raw/taa/reference PNGs of a few frames here")
     a = ap.parse_args(argv)
-    st = orbit_stage(a.stage, a.frames, a.degrees)
+    st = orbit_stage(a.stage, a.frames, a.degrees, a.pivot)
     ref, _ = render_sequence(st, a.frames, a.width, a.height, "reference", "off")
     raw, _ = render_sequence(st, a.frames, a.width, a.height, "stb", "off")
     taa, taa_ms = render_sequence(st, a.frames, a.width, a.height, "stb", "taa")
