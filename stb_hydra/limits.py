@@ -307,3 +307,10 @@ STB_PATTERN_BANK = 32
 #: Gaussian preference (quads) of a tile for its own quadrant in the random patterns:
 #: keeps a tile's quads local (its refined target stays representative).
 STB_PATTERN_SIGMA_QUADS = 4.0
+
+# --- Engine bookkeeping -----------------------------------------------------------------
+
+#: Frames of per-pass timings an Engine keeps (``Engine.timings.frames``; between this
+#: and twice this many). Unbounded, a long-running engine (previewer, soak) grew by
+#: ~1.6 KiB per frame for ever (docs/RELIABILITY.md); benchmarks use far fewer frames.
+TIMINGS_KEPT_FRAMES = 1024

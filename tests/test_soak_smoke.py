@@ -25,3 +25,21 @@ def test_soak_short_variant_keeps_atlas_invariants(gl_ctx, tmp_path):
     assert [b["frames"] for b in doc["blocks"]] == [20, 40]
     assert all(b["mean_ms"] > 0 and b["rss_mib"] > 0 for b in doc["blocks"])
     assert code == 0
+
+
+def test_engine_timings_stay_bounded():
+    """A long-running engine keeps a bounded window of per-frame timings (the soak's
+    memory growth: one dict per frame, for ever), newest last."""
+    from stb_hydra import limits
+    from stb_hydra.renderer.frame import Timings
+
+    t = Timings()
+    keep = limits.TIMINGS_KEPT_FRAMES
+    for i in range(5 * keep + 3):
+        t.start_frame()
+        t.add("pass", float(i))
+        t.end_frame()
+        assert len(t.frames) < 2 * keep
+    assert len(t.frames) >= keep
+    assert t.frames[-1] == {"pass": float(5 * keep + 2)}
+    assert [f["pass"] for f in t.frames] == list(range(5 * keep + 3 - len(t.frames), 5 * keep + 3))

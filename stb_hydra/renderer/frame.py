@@ -76,7 +76,8 @@ class RenderSettings:
 
 
 class Timings:
-    """Wall-clock per task (ms), per frame."""
+    """Wall-clock per task (ms), per frame: the last ``limits.TIMINGS_KEPT_FRAMES``
+    frames at least (older ones are dropped, so a long-running engine stays bounded)."""
 
     def __init__(self) -> None:
         self.frames: list[dict[str, float]] = []
@@ -87,6 +88,9 @@ class Timings:
 
     def end_frame(self) -> None:
         self.frames.append(dict(self.current))
+        keep = limits.TIMINGS_KEPT_FRAMES
+        if len(self.frames) >= 2 * keep:  # trimmed in chunks: amortised O(1) per frame
+            del self.frames[:-keep]
 
     def add(self, name: str, ms: float) -> None:
         self.current[name] += ms
