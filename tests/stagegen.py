@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from pxr import Sdf, Usd
+from pxr import Gf, Sdf, Usd, UsdGeom
 
 import stb_hydra  # noqa: F401  (schema registration)
 
@@ -126,3 +126,69 @@ BOX_USDA = (
     '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
 )
 """``/Box``: a 2 m cube standing on the ground at the origin."""
+
+
+def plane_points(
+    stage: Usd.Stage,
+    width: int,
+    height: int,
+    *,
+    camera: str = "/Cam",
+    time: float | None = None,
+) -> np.ndarray:
+    """(height, width, 3) world point on the plane y = 0 seen through each pixel centre,
+    top row first -- from USD's own camera (``Gf.Frustum.ComputePickRay``), never the
+    renderer's projection code."""
+    tc = Usd.TimeCode.Default() if time is None else Usd.TimeCode(time)
+    fr = UsdGeom.Camera(stage.GetPrimAtPath(camera)).GetCamera(tc).frustum
+    pts = np.zeros((height, width, 3))
+    for j in range(height):
+        for i in range(width):
+            ray = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / width - 1, 1 - 2 * (j + 0.5) / height))
+            o, d = np.array(ray.startPoint), np.array(ray.direction)
+            pts[j, i] = o - o[1] / d[1] * d
+    return pts
+
+
+#: A Lambertian floor (UsdPreviewSurface, diffuse ``{rho}``, roughness 1) seen straight
+#: down from 4 m, plus ``{light}``; ``str.format`` it (braces of the text are doubled).
+LAMBERT_FLOOR_USDA = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "Y"
+)
+def Camera "Cam"
+{{
+    float focalLength = 18
+    float horizontalAperture = 36
+    float verticalAperture = 20.25
+    float2 clippingRange = (0.1, 100)
+    double3 xformOp:translate = (0, 4, 0)
+    float xformOp:rotateX = -90
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
+}}
+def Mesh "Ground" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{{
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
+    rel material:binding = </Looks/Grey>
+}}
+def Scope "Looks"
+{{
+    def Material "Grey"
+    {{
+        token outputs:surface.connect = </Looks/Grey/PBR.outputs:surface>
+        def Shader "PBR"
+        {{
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor = ({rho}, {rho}, {rho})
+            float inputs:roughness = 1
+            token outputs:surface
+        }}
+    }}
+}}
+{light}
+"""

@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom
-from stagegen import usda_stage
+from pxr import Usd
+from stagegen import LAMBERT_FLOOR_USDA, plane_points, usda_stage
 
 import stb_hydra
 from stb_hydra.renderer.delegate import RenderDelegate
@@ -28,63 +28,13 @@ W, H = 96, 54
 RHO = 0.5
 METHODS = ("reference", "tiled", "clustered", "lighttree", "stb")
 
-FLOOR = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.1, 100)
-    double3 xformOp:translate = (0, 4, 0)
-    float xformOp:rotateX = -90
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}}
-def Mesh "Ground" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
-    rel material:binding = </Looks/Grey>
-}}
-def Scope "Looks"
-{{
-    def Material "Grey"
-    {{
-        token outputs:surface.connect = </Looks/Grey/PBR.outputs:surface>
-        def Shader "PBR"
-        {{
-            uniform token info:id = "UsdPreviewSurface"
-            color3f inputs:diffuseColor = ({rho}, {rho}, {rho})
-            float inputs:roughness = 1
-            token outputs:surface
-        }}
-    }}
-}}
-{light}
-"""
+
+def ground_points(stage: Usd.Stage) -> np.ndarray:
+    return plane_points(stage, W, H)
 
 
 def floor_stage(light: str) -> Usd.Stage:
-    return usda_stage(FLOOR.format(rho=RHO, light=light))
-
-
-def ground_points(stage: Usd.Stage, w: int = W, h: int = H) -> np.ndarray:
-    """World point on y = 0 seen through each pixel centre (USD's own pick rays)."""
-    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default())
-    fr = cam.frustum
-    pts = np.zeros((h, w, 3))
-    for j in range(h):
-        for i in range(w):
-            ray = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / w - 1, 1 - 2 * (j + 0.5) / h))
-            o, d = np.array(ray.startPoint), np.array(ray.direction)
-            pts[j, i] = o - o[1] / d[1] * d
-    return pts
+    return usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=light))
 
 
 def local_light(

@@ -11,74 +11,18 @@ import math
 import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom
-from stagegen import usda_stage
+from stagegen import LAMBERT_FLOOR_USDA, plane_points, usda_stage
 
 import stb_hydra
 
 W, H = 160, 90
 RHO = 0.5
 
-SCENE = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.1, 100)
-    double3 xformOp:translate = (0, 4, 0)
-    float xformOp:rotateX = -90
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}}
-def Mesh "Ground" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
-    rel material:binding = </Looks/Grey>
-}}
-def Scope "Looks"
-{{
-    def Material "Grey"
-    {{
-        token outputs:surface.connect = </Looks/Grey/PBR.outputs:surface>
-        def Shader "PBR"
-        {{
-            uniform token info:id = "UsdPreviewSurface"
-            color3f inputs:diffuseColor = ({rho}, {rho}, {rho})
-            float inputs:roughness = 1
-            token outputs:surface
-        }}
-    }}
-}}
-{light}
-"""
-
-
-def pixel_ground_points(stage: Usd.Stage) -> np.ndarray:
-    """World point on y = 0 seen through each pixel centre (top row first)."""
-    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default())
-    fr = cam.frustum
-    pts = np.zeros((H, W, 3))
-    for j in range(H):
-        for i in range(W):
-            ndc = Gf.Vec2d(2 * (i + 0.5) / W - 1, 1 - 2 * (j + 0.5) / H)
-            ray = fr.ComputePickRay(ndc)
-            o, d = np.array(ray.startPoint), np.array(ray.direction)
-            t = -o[1] / d[1]
-            pts[j, i] = o + t * d
-    return pts
-
 
 def render_scene(light: str) -> tuple[np.ndarray, np.ndarray]:
-    stage = usda_stage(SCENE.format(rho=RHO, light=light))
+    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=light))
     img = stb_hydra.render(stage, width=W, height=H, lighting="reference")
-    return img, pixel_ground_points(stage)
+    return img, plane_points(stage, W, H)
 
 
 POINT = """def SphereLight "L"

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pxr import Gf, Usd, UsdGeom
-from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
+from pxr import UsdGeom
+from stagegen import USDA_HEADER, camera_usda, ground_usda, plane_points, usda_stage
 
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
@@ -18,16 +18,7 @@ HEADER = USDA_HEADER + camera_usda((0, 7, 5), -55, clipping=(0.1, 100)) + ground
 
 
 def ground_points(stage) -> np.ndarray:
-    """World point on y = 0 seen through each pixel centre (USD's camera, top row first)."""
-    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default())
-    fr = cam.frustum
-    pts = np.zeros((H, W, 3))
-    for j in range(H):
-        for i in range(W):
-            ray = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / W - 1, 1 - 2 * (j + 0.5) / H))
-            o, d = np.array(ray.startPoint), np.array(ray.direction)
-            pts[j, i] = o + (-o[1] / d[1]) * d
-    return pts
+    return plane_points(stage, W, H)
 
 
 def segment_hits_box(p: np.ndarray, light: np.ndarray, lo, hi) -> np.ndarray:

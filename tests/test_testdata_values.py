@@ -16,22 +16,11 @@ import math
 import numpy as np
 import pytest
 from pxr import Gf, Usd, UsdGeom, UsdLux, UsdShade
+from stagegen import plane_points
 
 import stb_hydra
 
 N = 64  # the luxtest cameras are square
-
-
-def floor_points(stage: Usd.Stage, cam_path: str, time: float) -> np.ndarray:
-    cam = UsdGeom.Camera(stage.GetPrimAtPath(cam_path)).GetCamera(Usd.TimeCode(time))
-    fr = cam.frustum
-    pts = np.zeros((N, N, 3))
-    for j in range(N):
-        for i in range(N):
-            ray = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / N - 1, 1 - 2 * (j + 0.5) / N))
-            o, d = np.array(ray.startPoint), np.array(ray.direction)
-            pts[j, i] = o - o[1] / d[1] * d
-    return pts
 
 
 def floor_albedo(stage: Usd.Stage) -> float:
@@ -70,7 +59,7 @@ def test_luxtest_distant_light_floor_radiance(gl_ctx, testdata):
     assert expected == pytest.approx(3720 * math.sin(math.radians(0.265)) ** 2, rel=1e-3)
 
     img = stb_hydra.render(path, width=N, height=N, time=1, lighting="reference")
-    pts = floor_points(stage, "/cameras/camera1", 1)
+    pts = plane_points(stage, N, N, camera="/cameras/camera1", time=1)
     got = img[..., 0][region(pts)]
     assert got.mean() == pytest.approx(expected, rel=5e-3)
     assert np.abs(got / expected - 1).max() < 0.02
@@ -99,7 +88,7 @@ def test_luxtest_sphere_light_floor_radiance(gl_ctx, testdata, frame):
     intensity = L * math.pi * r * r
 
     img = stb_hydra.render(path, width=N, height=N, time=frame, lighting="reference")
-    pts = floor_points(stage, "/cameras/camera1", frame)
+    pts = plane_points(stage, N, N, camera="/cameras/camera1", time=frame)
     d = lpos - pts
     dist = np.linalg.norm(d, axis=-1)
     exp = floor_albedo(stage) * intensity * (d[..., 1] / dist) / (math.pi * dist**2)
