@@ -97,8 +97,10 @@ class Engine:
     def _make_method(self, name: str, options: dict[str, Any]) -> LightingMethod:
         return method_class(name)(self.delegate, self._warn_once, **options)
 
-    def _build_passes(self) -> PassSet:
-        ps = build_passes(self.ctx, self.delegate, self.settings, self.method, self.color)
+    def _build_passes(self, keep: PassSet | None = None) -> PassSet:
+        ps = build_passes(
+            self.ctx, self.delegate, self.settings, self.method, self.color, keep=keep
+        )
         ps.aov_output.requested = self._requested_aovs
         ps.aov_output.on_change = self._invalidate_graph
         self._graph = None
@@ -131,23 +133,8 @@ class Engine:
         self.method = method
         self.settings.lighting = name
         self.settings.method_options = dict(options)
-        atlas, uniforms = old.shadow_atlas, old.frame_uniforms
-        self._set = self._build_passes()
-        # Keep the long-lived state: captured shadow maps and the previous view.
-        self._set.frame_uniforms.release()
-        self._swap(self._set.frame_uniforms, uniforms)
-        atlas.enabled = self.settings.shadows and method.uses_local_lights
-        self._set.shadow_atlas.release()
-        self._swap(self._set.shadow_atlas, atlas)
-
-    def _swap(self, new: Pass, keep: Pass) -> None:
-        ps = self._set
-        ps.passes[ps.passes.index(new)] = keep
-        if new is ps.shadow_atlas:
-            ps.shadow_atlas = keep  # type: ignore[assignment]
-        if new is ps.frame_uniforms:
-            ps.frame_uniforms = keep  # type: ignore[assignment]
-        self._graph = None
+        # Captured shadow maps and the previous view stay (build_passes(keep=...)).
+        self._set = self._build_passes(keep=old)
 
     def _allocate(self) -> None:
         """Allocate the graph's render buffers at the viewport size (once per size

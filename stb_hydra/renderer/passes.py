@@ -55,19 +55,28 @@ def build_passes(
     settings: RenderSettings,
     method: LightingMethod,
     color: ColorPipeline,
+    keep: PassSet | None = None,
 ) -> PassSet:
     """Every registered pass for ``settings`` and ``method`` (the graph culls the
-    ones whose outputs nobody reads, e.g. debug views that were not requested)."""
-    atlas = ShadowAtlasTask(
-        delegate,
-        settings.shadow_atlas_size,
-        settings.realtime_shadow_budget(),
-        enabled=settings.shadows and method.uses_local_lights,
-    )
+    ones whose outputs nobody reads, e.g. debug views that were not requested).
+    ``keep``: the passes being replaced; their long-lived, method-independent state
+    (the shadow atlas with its captured maps, the frame uniforms with the previous
+    view) is reused instead of built again."""
+    local_shadows = settings.shadows and method.uses_local_lights
+    if keep is None:
+        atlas = ShadowAtlasTask(
+            delegate,
+            settings.shadow_atlas_size,
+            settings.realtime_shadow_budget(),
+            enabled=local_shadows,
+        )
+        uniforms = FrameUniformsTask(delegate, ctx)
+    else:
+        atlas, uniforms = keep.shadow_atlas, keep.frame_uniforms
+        atlas.enabled = local_shadows
     lighting = LightingTask(delegate, method)
     accumulate = AccumulateTask(delegate)
     temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
-    uniforms = FrameUniformsTask(delegate, ctx)
     aov = AovOutputTask(delegate, method)
     passes: list[Pass] = [
         DistantLightsTask(delegate),
