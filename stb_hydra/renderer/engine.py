@@ -82,6 +82,7 @@ class Engine:
         self._in_sequence = False
         self._requested_aovs: set[str] = {"color"}
         self._graph: CompiledGraph | None = None
+        self._scopes: dict[int, _PassScope] = {}
         self._allocated: tuple[int, int, int] | None = None
         self.method: LightingMethod = self._make_method(
             self.settings.lighting, self.settings.method_options
@@ -115,6 +116,8 @@ class Engine:
         if self._graph is None:
             self._graph = compile_graph(self._set.passes, IMPORTS)
             self._allocated = None
+            # Each pass's declared access, resolved once per graph, not per frame.
+            self._scopes = {id(p): _PassScope(self.buffers, p) for p in self._graph.passes}
         return self._graph
 
     def describe(self) -> str:
@@ -299,7 +302,7 @@ class Engine:
         return frame
 
     def _scope(self, frame: FrameContext, p: Pass) -> _PassScope:
-        return _PassScope(self.buffers, frame, p)
+        return self._scopes[id(p)].bind(frame)
 
     def render(self, time: float | None = None, accumulate: int | None = None) -> FrameContext:
         """Render ``accumulate`` frames (distinct seeds, same time) and average them
@@ -341,9 +344,9 @@ class _PassScope:
     """While a pass runs: the frame's records and buffers restricted to what it
     declared (undeclared access raises ``PassScopeError`` naming pass and resource)."""
 
-    def __init__(self, buffers: RenderBuffers, frame: FrameContext, p: Pass) -> None:
+    def __init__(self, buffers: RenderBuffers, p: Pass) -> None:
         reads, writes = p.io()
-        self.frame = frame
+        self.frame: FrameContext | None = None
         self.name = p.name
         self.rec_reads = frozenset(r.cls for r in reads if isinstance(r, Rec))
         self.rec_writes = frozenset(w.cls for w in writes if isinstance(w, Rec))
@@ -354,10 +357,17 @@ class _PassScope:
             {w.name for w in writes if isinstance(w, Tex)},
         )
 
+    def bind(self, frame: FrameContext) -> _PassScope:
+        """This scope for ``frame`` (the declarations are the graph's, the frame new)."""
+        self.frame = frame
+        return self
+
     def __enter__(self) -> _PassScope:
+        assert self.frame is not None
         self.frame.enter(self.name, self.rec_reads, self.rec_writes)
         self.frame.buffers = self.view
         return self
 
     def __exit__(self, *exc: object) -> None:
+        assert self.frame is not None
         self.frame.leave()
