@@ -13,6 +13,7 @@ import numpy as np
 from .. import limits
 from .camera import ViewSetup
 from .frame_data import SunSetup
+from .records import DistantLights, InViewLights
 
 T = TypeVar("T")
 
@@ -324,26 +325,18 @@ class FrameContext:
     @property
     def light_count(self) -> int:
         """Lights in view (``InViewLights``; 0 when no pass culls lights)."""
-        from .records import InViewLights
-
         return self.get(InViewLights).count if self.has(InViewLights) else 0
 
     @property
     def sun(self) -> SunSetup:
-        from .records import DistantLights
-
         return self.get(DistantLights).sun
 
     @property
     def ambient(self) -> np.ndarray:
-        from .records import DistantLights
-
         return self.get(DistantLights).ambient
 
     @property
     def extra_distant(self) -> list:
-        from .records import DistantLights
-
         return self.get(DistantLights).extra
 
     def timings_scope(self, name: str) -> timed:
