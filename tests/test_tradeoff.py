@@ -4,6 +4,7 @@ tiny end-to-end runs of the CLI (trade-off grid and light-count sweep)."""
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -73,6 +74,9 @@ def scene_file(tmp_path_factory, gl_ctx):
     p = tmp_path_factory.mktemp("tradeoff") / "scene.usda"
     p.write_text(small_lights_scene(40, seed=11))
     return p
+
+
+COURTYARD = Path(__file__).resolve().parents[1] / "usd_scenes" / "default.usda"
 
 
 def read_csv(path):
@@ -166,3 +170,57 @@ def test_cli_errors(argv, tmp_path, capsys):
     rc = cli.main(["tradeoff", *argv, "--out", str(tmp_path)])
     assert rc == 2
     assert "stb: error:" in capsys.readouterr().err
+
+
+def test_cli_moving_camera_scenario(tmp_path):
+    """``--moving``: an orbit of the courtyard rendered per frame by the reference, raw
+    STB, STB with taa and an exact method; taa must be steadier and closer than raw
+    frames. (The courtyard, not the 40-light test scene: that one's dynamic range makes
+    HDR-FLIP evaluate ~30 exposures, 3 s per frame.)"""
+    out = tmp_path / "moving"
+    rc = cli.main(
+        [
+            "tradeoff",
+            str(COURTYARD),
+            "--moving",
+            "1.5",
+            "--moving-frames",
+            "10",
+            "--moving-skip",
+            "4",
+            "--methods",
+            "stb,tiled",
+            "--width",
+            "64",
+            "--height",
+            "36",
+            "--out",
+            str(out),
+        ]
+    )
+    assert rc == 0
+    by = {r["label"]: r for r in read_csv(out / "moving.csv")}
+    assert list(by) == [
+        "reference",
+        "stb N1 off",
+        "stb N1 taa",
+        "stb N4 off",
+        "stb N4 taa",
+        "tiled",
+    ]
+    assert float(by["reference"]["hdr_flip_median"]) == 0.0
+    assert float(by["reference"]["instability"]) == pytest.approx(1.0)
+    assert float(by["tiled"]["hdr_flip_median"]) < 1e-3  # exact, frame by frame
+    for n in ("1", "4"):
+        raw, taa = by[f"stb N{n} off"], by[f"stb N{n} taa"]
+        assert float(raw["hdr_flip_median"]) > 0.0
+        assert float(taa["hdr_flip_median"]) < float(raw["hdr_flip_median"])
+        assert float(taa["instability"]) < float(raw["instability"])
+        assert float(taa["temporal_ms"]) > 0.0
+    md = (out / "moving.md").read_text()
+    assert "| stb N1 taa |" in md and "orbiting 1.5 deg/frame" in md
+
+
+def test_cli_moving_needs_a_camera_turn(tmp_path, capsys):
+    rc = cli.main(["tradeoff", str(COURTYARD), "--moving", "0", "--out", str(tmp_path)])
+    assert rc == 2 and "--moving" in capsys.readouterr().err

@@ -29,6 +29,11 @@ Pareto frontier drawn) and ``report.md`` (best configuration per time budget).
 ``lights`` generator, or ``chess`` with ``SCENE=chess``) for stb, reference, sun,
 tiled, clustered and lighttree (defaults), writing ``sweep.csv``, ``sweep.md`` and
 ``frame_time_vs_lights.png``.
+
+``--moving DEG`` runs the moving-camera scenario instead (:mod:`.tradeoff_moving`: the
+camera orbits DEG degrees per frame; per-frame HDR-FLIP against the per-frame
+reference and temporal instability of raw STB, STB with ``taa`` and the exact methods;
+``moving.csv``, ``moving.md``).
 """
 
 from __future__ import annotations
@@ -639,6 +644,20 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
     return rows
 
 
+def run_moving_scenario(args) -> list[dict]:
+    """``--moving DEG``: :mod:`.tradeoff_moving` on the scene (a generated one included)."""
+    from .tradeoff_moving import run_moving
+
+    if not math.isfinite(args.moving) or args.moving == 0.0:
+        raise CliError("--moving needs a non-zero number of degrees per frame")
+    stage, name = open_scene(args.scene, args.seed)
+    out = Path(args.out or Path("out") / "tradeoff" / name)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = run_moving(args, stage, name, out)
+    print(f"stb tradeoff: wrote {out / 'moving.csv'}, {out / 'moving.md'}", file=sys.stderr)
+    return rows
+
+
 def finish_report(rows, out: Path, meta: dict, name: str, budgets) -> None:
     plot_pareto(
         rows,
@@ -908,6 +927,20 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--sweep-lights", help="frame time vs light count instead, e.g. 50,500,5000")
     p.add_argument(
+        "--moving",
+        type=float,
+        metavar="DEG",
+        help="moving-camera scenario instead: the camera orbits DEG degrees per frame "
+        "(per-frame reference; stb raw and taa, exact methods); writes moving.csv/moving.md",
+    )
+    p.add_argument("--moving-frames", type=int, default=24, help="frames of the orbit (24)")
+    p.add_argument(
+        "--moving-skip", type=int, default=8, help="first frames left out of the medians (8)"
+    )
+    p.add_argument(
+        "--pivot", type=float, default=12.0, help="orbit about the ground point this far ahead (m)"
+    )
+    p.add_argument(
         "--sweep-methods", help=f"methods of the sweep (default {','.join(SWEEP_METHODS)})"
     )
     p.set_defaults(func=main)
@@ -927,6 +960,8 @@ def main(args: argparse.Namespace) -> int:
                 report_only(args)
             elif args.sweep_lights:
                 run_sweep(args)
+            elif args.moving is not None:
+                run_moving_scenario(args)
             else:
                 run_tradeoff(args)
         except (RenderError, GLError) as exc:
