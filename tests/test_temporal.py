@@ -278,3 +278,84 @@ def test_taa_history_spans_render_calls(repo):
         assert eng.temporal.last_reset == "cut"
     finally:
         eng.release()
+
+
+def _camera_stage(anim: str = "") -> Usd.Stage:
+    """A floor, one light and /Cam; ``anim`` is authored on the camera (USDA body)."""
+    stage = usda_stage(USDA_HEADER + ground_usda(20) + camera_usda((0, 3, 8), -15) + _lights_usda())
+    stage.SetEditTarget(stage.GetRootLayer())
+    cam = stage.GetPrimAtPath("/Cam")
+    if anim == "translate":
+        op = UsdGeom.Xformable(cam).GetOrderedXformOps()[0]
+        op.Set(Gf.Vec3d(0, 3, 8), 1)
+        op.Set(Gf.Vec3d(1, 3, 8), 3)
+    elif anim == "constant":
+        op = UsdGeom.Xformable(cam).GetOrderedXformOps()[0]
+        for t in (1, 2, 3):
+            op.Set(Gf.Vec3d(0, 3, 8), t)
+    elif anim == "focal":
+        a = UsdGeom.Camera(cam).GetFocalLengthAttr()
+        a.Set(18.0, 1)
+        a.Set(35.0, 3)
+    elif anim == "parent":
+        parent = UsdGeom.Xform.Define(stage, "/Rig")
+        op = parent.AddTranslateOp()
+        op.Set(Gf.Vec3d(0, 0, 0), 1)
+        op.Set(Gf.Vec3d(0, 0, 2), 3)
+        stage.DefinePrim("/Rig/Cam", "Camera")  # moves with its parent
+        return stage
+    return stage
+
+
+@pytest.mark.parametrize(
+    ("anim", "path", "moves"),
+    [
+        ("", "/Cam", False),
+        ("constant", "/Cam", False),  # time samples that never change: still
+        ("translate", "/Cam", True),
+        ("focal", "/Cam", True),
+        ("parent", "/Rig/Cam", True),  # an animated ancestor moves the view
+    ],
+)
+def test_camera_moves(anim, path, moves):
+    from stb_hydra.scene.cameras import camera_moves
+
+    stage = _camera_stage(anim)
+    assert camera_moves(stage, path, [1.0, 2.0, 3.0]) is moves
+    assert camera_moves(stage, path, [1.0]) is False  # one frame: nothing to reuse
+    assert camera_moves(stage, None, [1.0, 2.0, 3.0]) is False  # free framing camera
+
+
+@pytest.mark.parametrize(("anim", "expected"), [("translate", "taa"), ("", "accumulate")])
+def test_render_cli_temporal_auto(tmp_path, anim, expected):
+    """``stb render --frames`` picks taa for a moving camera, accumulate for a still one
+    (``--temporal auto``, the default); an explicit mode is kept."""
+    import json
+
+    from stb_hydra.apps import cli
+
+    stage = _camera_stage(anim)
+    scene = tmp_path / "s.usda"
+    stage.Flatten().Export(str(scene))
+    for mode, want in (("auto", expected), ("off", "off")):
+        stats = tmp_path / f"{mode}.json"
+        argv = ["render", str(scene), str(tmp_path / f"{mode}.####.exr"), "--frames", "1:3"]
+        argv += ["--width", "32", "--height", "18", "--lighting", "stb", "--stats", str(stats)]
+        assert cli.main([*argv, "--temporal", mode]) == 0
+        assert json.loads(stats.read_text())["settings"]["temporal"] == want
+
+
+def test_set_temporal_switches_a_live_engine(repo):
+    stage = _camera_stage()
+    eng = Engine(stage, RenderSettings(width=32, height=18, lighting="stb"))
+    try:
+        eng.render()
+        assert eng.temporal is None
+        eng.set_temporal("taa")
+        assert eng.temporal is not None and eng.settings.temporal == "taa"
+        eng.render()
+        assert np.isfinite(eng.aovs["color"]).all()
+        with pytest.raises(ValueError, match="temporal must be one of"):
+            eng.set_temporal("nope")
+    finally:
+        eng.release()

@@ -69,11 +69,12 @@ def add_parser(sub) -> None:
     p.add_argument("--accumulate", type=int, default=1, help="frames averaged per image")
     p.add_argument(
         "--temporal",
-        choices=("accumulate", "taa", "off"),  # renderer.frame.TEMPORAL_MODES
-        default="accumulate",
+        choices=("auto", "accumulate", "taa", "off"),  # auto + renderer.frame.TEMPORAL_MODES
+        default="auto",
         help="temporal reuse: accumulate (average the --accumulate frames of each image: a "
-        "still camera; default), taa (reprojected history kept across --frames, with "
-        "subpixel jitter: a moving camera or animated objects), off (no reuse)",
+        "still camera), taa (reprojected history kept across --frames, with subpixel "
+        "jitter: a moving camera or animated objects), off (no reuse); auto (default): taa "
+        "when the camera moves over several --frames, else accumulate",
     )
     p.add_argument("--seed", type=int, default=0, help="random seed of stochastic methods")
     p.add_argument("--ocio-config", help="OCIO config (default: $OCIO, else OCIO's studio config)")
@@ -159,6 +160,7 @@ def _run(args: argparse.Namespace, rep: Reporter) -> int:
     eng = _build_engine(stage, settings, pipeline, frames[0])
     try:
         _check_image_size(eng)
+        _resolve_temporal(args, stage, eng, frames, rep)
         if args.verbose:
             rep.say(f"stb render: {eng.renderer_info}")
         ext = os.path.splitext(args.output)[1].lower()
@@ -176,6 +178,19 @@ def _run(args: argparse.Namespace, rep: Reporter) -> int:
     stats = _stats_header(args, eng, settings, pipeline)
     written = _render_frames(args, eng, frames, aovs, ext, pipeline, stats, rep)
     return _finish(args, stats, written, rep)
+
+
+def _resolve_temporal(args: argparse.Namespace, stage, eng, frames, rep: Reporter) -> None:
+    """``--temporal auto``: taa when the rendered camera moves over the frames (its world
+    transform or lens changes), else accumulate (the engine was built with accumulate)."""
+    if args.temporal != "auto":
+        return
+    from ..scene.cameras import camera_moves
+
+    if camera_moves(stage, eng.camera_path, frames):
+        eng.set_temporal("taa")
+        if args.verbose:
+            rep.say(f"stb render: the camera {eng.camera_path} moves: --temporal taa")
 
 
 def _check_settings(args: argparse.Namespace) -> list[str]:
@@ -292,7 +307,7 @@ def _render_settings(args: argparse.Namespace):
         lighting=args.lighting,
         seed=args.seed,
         accumulate=args.accumulate,
-        temporal=args.temporal,
+        temporal="accumulate" if args.temporal == "auto" else args.temporal,
         ambient=args.ambient,
         profile=bool(args.stats),
         shadows=not args.no_shadows,

@@ -31,7 +31,15 @@ from ..scene import prims
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import StageSceneIndex
 from .camera import ViewSetup, framing_camera, view_setup
-from .frame import FrameContext, RenderBuffers, RenderSettings, ScopedBuffers, Timings, timed
+from .frame import (
+    TEMPORAL_MODES,
+    FrameContext,
+    RenderBuffers,
+    RenderSettings,
+    ScopedBuffers,
+    Timings,
+    timed,
+)
 from .fullscreen import release_fullscreen
 from .gl import get_context, park, shader_library
 from .gl_delegate import GLRenderDelegate
@@ -138,6 +146,17 @@ class Engine:
         self.settings.method_options = dict(options)
         # Captured shadow maps and the previous view stay (build_passes(keep=...)).
         self._set = self._build_passes(keep=old)
+
+    def set_temporal(self, mode: str) -> None:
+        """Switch the temporal mode (``accumulate``, ``taa``, ``off``) on a live engine:
+        the pass set is rebuilt like :meth:`set_lighting` does (scene, shadow atlas and
+        render buffers kept); the new mode starts with an empty history."""
+        if mode not in TEMPORAL_MODES:
+            raise ValueError(f"temporal must be one of {', '.join(TEMPORAL_MODES)}; got {mode!r}")
+        if mode == self.settings.temporal:
+            return
+        self.settings.temporal = mode
+        self.set_lighting(self.settings.lighting, **self.settings.method_options)
 
     def _allocate(self) -> None:
         """Allocate the graph's render buffers at the viewport size (once per size

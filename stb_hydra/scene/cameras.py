@@ -76,3 +76,40 @@ def exposure_scale(
         detail = f" ({', '.join(vals)})" if vals else ""
         warn(f"camera <{prim.GetPath()}>: exposure scale {why}{detail}; using 1 (no exposure)")
     return 1.0
+
+
+#: Relative change of a camera's world matrix (max abs element difference over its
+#: largest element) below which two time samples count as the same view.
+CAMERA_STILL_TOLERANCE = 1e-9
+
+
+def camera_moves(stage: Usd.Stage, path: str | None, times: list[float | None]) -> bool:
+    """Whether the camera at ``path`` changes its view over ``times`` (world transform,
+    ancestors included, or a lens attribute: focal length, apertures and offsets,
+    clipping range). ``path`` None (a free framing camera) never moves."""
+    if path is None or len(times) < 2:
+        return False
+    prim = stage.GetPrimAtPath(path)
+    if not prim or not prim.IsA(UsdGeom.Camera):
+        return False
+    cam = UsdGeom.Camera(prim)
+    cache_times = [Usd.TimeCode(t) if t is not None else Usd.TimeCode.Default() for t in times]
+    xf = UsdGeom.Xformable(prim)
+    first = np.array(xf.ComputeLocalToWorldTransform(cache_times[0]), dtype=np.float64)
+    scale = max(float(np.abs(first).max()), 1.0)
+    lens = (
+        cam.GetFocalLengthAttr(),
+        cam.GetHorizontalApertureAttr(),
+        cam.GetVerticalApertureAttr(),
+        cam.GetHorizontalApertureOffsetAttr(),
+        cam.GetVerticalApertureOffsetAttr(),
+        cam.GetClippingRangeAttr(),
+    )
+    lens0 = [a.Get(cache_times[0]) for a in lens]
+    for t in cache_times[1:]:
+        m = np.array(xf.ComputeLocalToWorldTransform(t), dtype=np.float64)
+        if float(np.abs(m - first).max()) > CAMERA_STILL_TOLERANCE * scale:
+            return True
+        if [a.Get(t) for a in lens] != lens0:
+            return True
+    return False
