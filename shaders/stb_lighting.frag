@@ -44,7 +44,21 @@ void main() {
     vec4 terms = texelFetch(u_terms, tt, 0);
     split = texelFetch(u_term_split, tt, 0).r;
 #endif
-    for (int j = 0; j < STB_N; ++j) {
+    // Samples j0 .. j1 - 1: all N, or the one this quad/pixel selects (a loop of one
+    // iteration, not N with a divergent skip: SIMD lanes would run all N).
+#if defined(STB_QUAD_SELECT)
+    int j0 = quad_stream(st, slot);
+#elif defined(STB_PIXEL_SELECT)
+    int j0 = pixel_stream(px);
+#else
+    int j0 = 0;
+#endif
+#ifdef STB_SELECT_ONE
+    int j1 = j0 + 1;
+#else
+    int j1 = STB_N;
+#endif
+    for (int j = j0; j < j1; ++j) {
         uint li = sample_index(smp[j]);
         float W = sample_weight(smp[j]);
         bool own = (split & (1u << uint(j))) != 0u;  // term evaluated here, per pixel

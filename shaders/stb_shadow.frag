@@ -76,10 +76,18 @@ void main() {
     }
     uint split = 0u;
 #endif
+    // Samples j0 .. j1 - 1: all N, or (quad selection) the one this quad's pixels use;
+    // a loop of one iteration, not N with a divergent skip.
+#ifdef STB_QUAD_SELECT
+    int j0 = quad_stream(st, slot);
+    int j1 = j0 + 1;
+#else
+    int j0 = 0, j1 = STB_N;
+#endif
     if (found) {
         uvec4 smp = texelFetch(u_smalltile, st, 0);
         Rng rng = rng_init(uint(tx.y) * 8192u + uint(tx.x) + 0x40000000u, u_counts.y);
-        for (int j = 0; j < STB_N; ++j) {
+        for (int j = j0; j < j1; ++j) {
             uint li = sample_index(smp[j]);
             if (li == LIM_EMPTY_LIGHT_INDEX) continue;
             Light L = lights[li];
@@ -104,7 +112,7 @@ void main() {
             if (!valid[k]) continue;
             vec3 Nk = oct_decode(texelFetch(g_normal, px + ivec2(k & 1, k >> 1), 0).rg);
             vec4 pt = terms;  // the representative's (and unsplit samples') terms
-            for (int j = 0; j < STB_N; ++j) {
+            for (int j = j0; j < j1; ++j) {
                 if (k == rep || (split & (1u << uint(j))) == 0u) continue;
                 float t = sample_term(lights[sample_index(smp[j])], qP[k], Nk);
                 pt[j] = min(floor(t * 255.0 + rng_float(rng)), 255.0) / 255.0;

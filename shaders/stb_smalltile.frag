@@ -119,6 +119,40 @@ void main() {
     bool uniform_pick = !(mean_ph > 0.0);
     float floor_ph = u_pdf_floor * mean_ph;
 
+#ifdef STB_SELECT_ONE
+    // Quad/pixel selection: STB_N independent picks (with replacement) over all K
+    // candidates, each a complete one-sample estimate W = sum(p_hat x W_bt) /
+    // p_hat(selected); every quad (or pixel) uses one of them (quad_stream /
+    // pixel_stream), so the tile's pixels do not all share one light: its noise is
+    // less correlated across the tile, for the lighting cost of one sample.
+    float total = 0.0;
+    float count = 0.0;
+    float w_all[LIM_BIG_TILE_SLOTS_MAX];
+    for (int slot = 0; slot < K; ++slot) {
+        w_all[slot] = 0.0;
+        if (li_all[slot] == LIM_EMPTY_LIGHT_INDEX || wbt_all[slot] <= 0.0) continue;
+        float ph = uniform_pick ? 1.0 : ph_all[slot] + floor_ph;
+        w_all[slot] = ph * wbt_all[slot];
+        total += w_all[slot];
+        count += 1.0;
+    }
+    for (int j = 0; j < STB_N; ++j) {
+        if (!(total > 0.0)) break;
+        float u = rng_float(rng) * total;
+        int pick = -1;
+        float acc = 0.0;
+        for (int slot = 0; slot < K; ++slot) {
+            if (w_all[slot] <= 0.0) continue;
+            pick = slot;  // the last positive candidate absorbs rounding at the top
+            acc += w_all[slot];
+            if (u < acc) break;
+        }
+        float ph = uniform_pick ? 1.0 : ph_all[pick] + floor_ph;
+        float W = total / ph;
+        if (u_weight_cap > 0.0) W = min(W, u_weight_cap * count * wbt_all[pick]);
+        result[j] = pack_sample(li_all[pick], W);
+    }
+#else
     // Iteration `base` hands slots base..base+N-1 to the N streams, rotated by a
     // random offset: each big-tile slot lands in exactly one stream.
     float total[STB_N];
@@ -154,5 +188,6 @@ void main() {
         if (u_weight_cap > 0.0) W = min(W, u_weight_cap * count[j] * sel_wbt[j]);
         result[j] = pack_sample(sel[j], W);
     }
+#endif
     o_samples = result;
 }

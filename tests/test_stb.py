@@ -179,20 +179,23 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
 # --- unbiasedness --------------------------------------------------------------------------
 
 
-def test_unbiased_mean_converges_to_reference(gl_ctx):
-    """Weight cap off: the mean of M STB frames -> reference, error ~ 1/M.
+@pytest.mark.parametrize("select", ["all", "quad", "pixel"])
+def test_unbiased_mean_converges_to_reference(gl_ctx, select):
+    """Weight cap off: the mean of M STB frames -> reference, error ~ 1/M; with all N
+    samples per pixel and with quad selection (one of the N per quad).
     relMSE with epsilon 1e-2 (scene-linear values here are ~1..100)."""
     stage = usda_stage(lights_scene(200))
     w, h = 128, 72
     ref = stb_hydra.render(stage, width=w, height=h, lighting="reference")
     # 32 px big tiles at 128x72 cover the same view angle as 128 px tiles at 512x288.
-    opts = dict(weight_cap=None, N=4, K=64, big_tile=32, shadow_res="pixel")
+    opts = dict(weight_cap=None, N=4, K=64, big_tile=32, shadow_res="pixel", select=select)
     e64 = relmse(
         stb_hydra.render(stage, width=w, height=h, lighting="stb", accumulate=64, **opts), ref
     )
     img = stb_hydra.render(stage, width=w, height=h, lighting="stb", accumulate=512, **opts)
     e512 = relmse(img, ref)
-    assert e512 <= 2e-3, e512
+    # Quad/pixel selection evaluates one of the N = 4 samples per pixel: ~4x the variance.
+    assert e512 <= (2e-3 if select == "all" else 8e-3), e512
     assert e512 < e64 / 3.0, (e64, e512)  # 8x the frames: error falls roughly as 1/M
     assert abs(img.mean() / ref.mean() - 1.0) < 0.01
 
@@ -316,6 +319,11 @@ def test_no_nan_or_inf_at_any_setting(gl_ctx):
         )
         if not inter:
             opts["small_tile"] = 16
+        img = stb_hydra.render(stage, width=96, height=54, lighting="stb", **opts)
+        assert np.isfinite(img).all(), opts
+        assert img.min() >= 0 and img.max() <= limits.HALF_MAX, opts
+    for K, N, cap, select in itertools.product((4, 64), (1, 4), (None, 8.0), ("quad", "pixel")):
+        opts = dict(K=K, N=N, weight_cap=cap, select=select)
         img = stb_hydra.render(stage, width=96, height=54, lighting="stb", **opts)
         assert np.isfinite(img).all(), opts
         assert img.min() >= 0 and img.max() <= limits.HALF_MAX, opts

@@ -71,4 +71,23 @@ ivec2 term_texel(ivec2 small_tile, int slot) {
     int s = quads_per_side();
     return small_tile * s + ivec2(slot % s, slot / s);
 }
+
+#ifdef STB_SELECT_ONE
+uint select_hash(uint a, uint b, uint c) {
+    uint h = a * 73856093u ^ b * 19349663u ^ c * 83492791u ^ u_counts.y * 2654435761u;
+    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
+    return h;
+}
+// Quad selection: the one small-tile sample (0 .. STB_N - 1) this quad uses this
+// frame, a hash of (small tile, slot, frame seed). The shadow and lighting passes
+// compute the same value, so a quad's term and its light always match.
+int quad_stream(ivec2 small_tile, int slot) {
+    return int(select_hash(uint(small_tile.y), uint(small_tile.x), uint(slot)) % uint(STB_N));
+}
+// Pixel selection: the one sample pixel px uses this frame (the shadow pass computes
+// every sample's term, so any choice has its term).
+int pixel_stream(ivec2 px) {
+    return int(select_hash(uint(px.y), uint(px.x), 0x51u) % uint(STB_N));
+}
+#endif
 #endif

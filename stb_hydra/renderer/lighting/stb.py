@@ -117,6 +117,15 @@ OPTIONS = Schema(
         choices=("quad", "pixel"),
         doc="deferred shadow terms per 2x2 quad (the talk's) or per pixel",
     ),
+    Opt(
+        "select",
+        str,
+        "all",
+        choices=("all", "quad", "pixel"),
+        doc="samples a pixel evaluates: all N of its small tile (the talk's), or one of N "
+        "drawn independently over all K, chosen per quad (terms for that one only: the "
+        "cost of N = 1) or per pixel (terms for all N): less tile-correlated noise",
+    ),
 )
 #: Debug views (``shaders/debug_<name>.frag``).
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
@@ -242,6 +251,9 @@ class StbLighting(LightingMethod):
         d["STB_N"] = int(self.o["N"])
         if self.o["shadow_res"] == "pixel":
             d["STB_PIXEL_TERMS"] = True
+        if self.o["select"] != "all":
+            d["STB_SELECT_ONE"] = True
+            d["STB_QUAD_SELECT" if self.o["select"] == "quad" else "STB_PIXEL_SELECT"] = True
         if not any(k in d for k in ("HAS_SHADOWS", "HAS_CONES", "HAS_IES")):
             d["STB_UNIT_TERMS"] = True  # every term is 1: no term pass
         return d
