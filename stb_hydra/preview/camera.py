@@ -77,7 +77,9 @@ class OrbitCamera:
         r = max(self.scene_radius, 1e-3)
         far = self.distance + 4.0 * r
         cam.far = far
-        cam.near = max(far * 1e-5, min(self.distance * 0.05, max(self.distance - 2.0 * r, 0.0)), 1e-3)
+        cam.near = max(
+            far * 1e-5, min(self.distance * 0.05, max(self.distance - 2.0 * r, 0.0)), 1e-3
+        )
         return cam
 
     # -- usdview's gestures --

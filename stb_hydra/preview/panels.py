@@ -29,7 +29,9 @@ class PanelState:
 def draw_error(message: str, size: tuple[int, int]) -> None:
     """The stage could not be shown: the error, centred."""
     w, h = size
-    imgui.set_next_window_pos(imgui.ImVec2(w * 0.5, h * 0.5), imgui.Cond_.always, imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_pos(
+        imgui.ImVec2(w * 0.5, h * 0.5), imgui.Cond_.always, imgui.ImVec2(0.5, 0.5)
+    )
     imgui.set_next_window_size(imgui.ImVec2(min(w - 20.0, 600.0), 0.0), imgui.Cond_.always)
     flags = imgui.WindowFlags_.no_collapse | imgui.WindowFlags_.no_move
     imgui.begin("stb preview: cannot show the stage", None, flags)
@@ -121,25 +123,26 @@ def _render_tab(s: PreviewSession) -> None:
         if cur is None:
             imgui.text_colored(_GREY, f"{opt.name}: auto")
             continue
+        val: Any
         if opt.type is bool:
-            ch, v = imgui.checkbox(opt.name, bool(cur))
+            ch, val = imgui.checkbox(opt.name, bool(cur))
         elif opt.type is int:
-            ch, v = imgui.input_int(opt.name, int(cur))
+            ch, val = imgui.input_int(opt.name, int(cur))
         elif opt.type is float:
-            ch, v = imgui.input_float(opt.name, float(cur))
+            ch, val = imgui.input_float(opt.name, float(cur))
         else:
             continue
         if ch:
-            s.set_options(**{opt.name: v})
+            s.set_options(**{opt.name: val})
     t = _combo("temporal", s.temporal, list(TEMPORAL_MODES))
     if t is not None:
         s.set_temporal(t)
     ch, n = imgui.slider_int("max samples", s.max_samples, 1, 1024)
     if ch:
         s.max_samples = max(1, n)
-    v = _combo("view", s.view, s.views())
-    if v is not None:
-        s.set_view(v)
+    view = _combo("view", s.view, s.views())
+    if view is not None:
+        s.set_view(view)
     ch, ev = imgui.slider_float("exposure", s.exposure, -8.0, 8.0, "%.2f stops")
     if ch:
         s.set_exposure(ev)
@@ -162,7 +165,9 @@ def _lights_tab(s: PreviewSession) -> None:
             s.set_light(p, enabled=on)
         imgui.same_line()
         if imgui.tree_node(f"{p}  ({rec['type']})"):
-            ch, v = imgui.drag_float("intensity", rec["intensity"], 0.05 * max(rec["intensity"], 1.0))
+            ch, v = imgui.drag_float(
+                "intensity", rec["intensity"], 0.05 * max(rec["intensity"], 1.0)
+            )
             if ch:
                 s.set_light(p, intensity=max(v, 0.0))
             ch, v = imgui.slider_float("exposure", rec["exposure"], -10.0, 10.0)

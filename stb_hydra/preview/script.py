@@ -116,15 +116,11 @@ def _check(where: str, kind: str, value: Any, extra: dict[str, Any]) -> None:
         if "enabled" in extra and not isinstance(extra["enabled"], bool):
             raise ScriptError(f"{where}: 'enabled' must be true or false")
         for k in ("intensity", "exposure"):
-            if k in extra and (
-                not isinstance(extra[k], _NUM) or isinstance(extra[k], bool)
-            ):
+            if k in extra and (not isinstance(extra[k], _NUM) or isinstance(extra[k], bool)):
                 raise ScriptError(f"{where}: '{k}' must be a number, got {extra[k]!r}")
         if "color" in extra:
             c = extra["color"]
-            if not (
-                isinstance(c, list) and len(c) == 3 and all(isinstance(v, _NUM) for v in c)
-            ):
+            if not (isinstance(c, list) and len(c) == 3 and all(isinstance(v, _NUM) for v in c)):
                 raise ScriptError(f"{where}: 'color' must be [r, g, b], got {c!r}")
     if kind == "method" and "options" in extra and not isinstance(extra["options"], dict):
         raise ScriptError(f"{where}: 'options' must be an object")
@@ -136,18 +132,17 @@ def parse_events(data: Any, source: str = "script") -> list[Event]:
     if isinstance(data, dict) and set(data) == {"events"}:
         data = data["events"]
     if not isinstance(data, list):
-        raise ScriptError(f"{source}: expected a list of events (or {{\"events\": [...]}})")
+        raise ScriptError(f'{source}: expected a list of events (or {{"events": [...]}})')
     out: list[Event] = []
     for i, ev in enumerate(data, 1):
         where = f"{source}: event {i}"
         if not isinstance(ev, dict) or not ev:
-            raise ScriptError(f"{where}: expected an object like {{\"wait\": 10}}, got {ev!r}")
+            raise ScriptError(f'{where}: expected an object like {{"wait": 10}}, got {ev!r}')
         # Events that carry extra keys are named by their own key ("light", "method").
         names = [k for k in EXTRA_KEYS if k in ev] or [k for k in ev if k in EVENT_TYPES]
         if not names:
             raise ScriptError(
-                f"{where}: unknown event {next(iter(ev))!r} "
-                f"(choose from {', '.join(EVENT_TYPES)})"
+                f"{where}: unknown event {next(iter(ev))!r} (choose from {', '.join(EVENT_TYPES)})"
             )
         kind = names[0]
         allowed = EXTRA_KEYS.get(kind, set())

@@ -38,6 +38,7 @@ from ..renderer.gl import GLError
 from ..renderer.lighting import available, method_class
 from ..renderer.lighting.options import OptionError
 from ..renderer.tasks.aov_output import AOVS, DEBUG_AOVS
+from ..scene.prims import LightPrim
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import render_from_stage_matrix
 from .camera import OrbitCamera
@@ -179,11 +180,7 @@ class PreviewSession:
         """The views the current method offers (colour, AOVs, its debug views)."""
         assert self.engine is not None
         offered = set(getattr(self.engine.method, "debug_aovs", ()))
-        return [
-            v
-            for v in VIEWS
-            if v not in DEBUG_AOVS or v == "lightcount" or v in offered
-        ]
+        return [v for v in VIEWS if v not in DEBUG_AOVS or v == "lightcount" or v in offered]
 
     # -- the frame loop --
     def _pending_change(self) -> bool:
@@ -315,7 +312,9 @@ class PreviewSession:
         if not self.ok:
             return False
         if path is not None and path not in self.cameras():
-            self.message = f"camera '{path}' not found (cameras: {', '.join(self.cameras()) or 'none'})"
+            self.message = (
+                f"camera '{path}' not found (cameras: {', '.join(self.cameras()) or 'none'})"
+            )
             return False
         if path is None and self.camera_path is not None:
             self._take_over_camera()
@@ -379,9 +378,8 @@ class PreviewSession:
         from pxr import Usd, UsdGeom
 
         assert self.engine is not None
-        lp = self.engine.delegate.lights.get(path)
-        if lp is not None:
-            light = lp.light
+        light = self._light(path)
+        if light is not None:
             r = max(float(light.radius or 0.0), float(light.length or 0.0), 0.25)
             p = np.asarray(light.position, dtype=np.float64)
             return p - r, p + r
@@ -398,7 +396,12 @@ class PreviewSession:
             return None
         lo, hi = np.array(box.GetMin()), np.array(box.GetMax())
         corners = np.array(
-            [[(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2], 1.0] for i in (0, 1) for j in (0, 1) for k in (0, 1)]
+            [
+                [(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2], 1.0]
+                for i in (0, 1)
+                for j in (0, 1)
+                for k in (0, 1)
+            ]
         )
         w = corners @ render_from_stage_matrix(self.stage)
         return w[:, :3].min(0), w[:, :3].max(0)
@@ -416,8 +419,10 @@ class PreviewSession:
         except (KeyError, ValueError, OptionError) as exc:
             self.message = _one_line(exc)
             return False
-        if self.view in DEBUG_AOVS and self.view != "lightcount" and self.view not in getattr(
-            cls, "debug_aovs", ()
+        if (
+            self.view in DEBUG_AOVS
+            and self.view != "lightcount"
+            and self.view not in getattr(cls, "debug_aovs", ())
         ):
             self.set_view("color")
         try:
@@ -447,7 +452,9 @@ class PreviewSession:
             return False
         assert self.engine is not None
         if name not in self.views():
-            self.message = f"view '{name}' not offered by '{self.method}' (views: {', '.join(self.views())})"
+            self.message = (
+                f"view '{name}' not offered by '{self.method}' (views: {', '.join(self.views())})"
+            )
             return False
         self.engine.request_aovs(set() if name == "color" else {name})
         self.view = name
@@ -533,7 +540,9 @@ class PreviewSession:
         out = []
         for path in sorted(self.engine.delegate.lights):
             prim = self.stage.GetPrimAtPath(path)
-            lp = self.engine.delegate.lights[path].light
+            lp = self._light(path)
+            if lp is None:
+                continue
             api = UsdLux.LightAPI(prim)
             out.append(
                 {
@@ -636,9 +645,8 @@ class PreviewSession:
         if not prim:
             return []
         rows: list[tuple[str, str]] = [("type", prim.GetTypeName() or "-")]
-        sp = self.engine.delegate.lights.get(path)
-        if sp is not None:
-            lp = sp.light
+        lp = self._light(path)
+        if lp is not None:
             local = lp.type in ("sphereLight", "diskLight", "rectLight", "cylinderLight")
             unit = "cd" if local else ("lx" if lp.type == "distantLight" else "nit")
             rows += [
@@ -654,6 +662,12 @@ class PreviewSession:
                 continue
             rows.append((a.GetName(), _fmt(a.Get(t))))
         return rows
+
+    def _light(self, path: str) -> LightPrim | None:
+        """The synced light at ``path`` (render frame, physical units), or None."""
+        assert self.engine is not None
+        sp = self.engine.delegate.lights.get(path)
+        return None if sp is None else sp.light
 
     def release(self) -> None:
         if self.engine is not None:
@@ -692,7 +706,9 @@ def _fmt(v: Any) -> str:
             vals = [float(x) for x in v]
         except (TypeError, ValueError):
             return str(v)[:200]
-        return "(" + ", ".join(f"{x:.4g}" for x in vals[:16]) + (", ...)" if len(vals) > 16 else ")")
+        return (
+            "(" + ", ".join(f"{x:.4g}" for x in vals[:16]) + (", ...)" if len(vals) > 16 else ")")
+        )
     return str(v)[:200]
 
 

@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import glfw
 import moderngl
@@ -148,7 +149,7 @@ class PreviewWindow:
         # Own sampler object on unit 0: the engine's passes may leave one bound there.
         tex.use(0)
         self.sampler.use(0)
-        self.blit["img"].value = 0
+        cast(moderngl.Uniform, self.blit["img"]).value = 0
         self.vao.render(moderngl.TRIANGLES, vertices=3)
         self.sampler.clear(0)
 
@@ -231,12 +232,14 @@ class PreviewApp:
         self._fly_keys: set[int] = set()
         self._quit = False
         self._shot_counter = 0
-        self._frame_times: list[float] = []
+        self._frame_times: deque[float] = deque(maxlen=30)
         self._install_callbacks()
 
     # -- output --
     def _report(self, msg: str, warning: bool = False) -> None:
-        print(f"stb preview: {'warning: ' if warning else 'error: '}{msg}", file=self.err, flush=True)
+        print(
+            f"stb preview: {'warning: ' if warning else 'error: '}{msg}", file=self.err, flush=True
+        )
 
     def _check_keys(self) -> None:
         for ev in self._events:
@@ -302,7 +305,9 @@ class PreviewApp:
         elif key in (glfw.KEY_LEFT, glfw.KEY_RIGHT) and s.ok:
             rng = s.time_range()
             if rng is not None:
-                t = (s.time if s.time is not None else rng[0]) + (1 if key == glfw.KEY_RIGHT else -1)
+                t = (s.time if s.time is not None else rng[0]) + (
+                    1 if key == glfw.KEY_RIGHT else -1
+                )
                 s.set_time(min(max(t, rng[0]), rng[1]))
         elif key == glfw.KEY_R and s.ok:
             s.set_temporal(s.temporal)
@@ -314,7 +319,9 @@ class PreviewApp:
             self._shots.append(str(path))
 
     def _fly_active(self) -> bool:
-        return glfw.get_mouse_button(self.window.win, glfw.MOUSE_BUTTON_RIGHT) == glfw.PRESS and not (
+        return glfw.get_mouse_button(
+            self.window.win, glfw.MOUSE_BUTTON_RIGHT
+        ) == glfw.PRESS and not (
             glfw.get_key(self.window.win, glfw.KEY_LEFT_ALT) == glfw.PRESS
             or glfw.get_key(self.window.win, glfw.KEY_RIGHT_ALT) == glfw.PRESS
         )
@@ -524,6 +531,7 @@ class PreviewApp:
         opts = self.opts
         ticks = 0
         last = time.perf_counter()
+        drew_last = False
         while not glfw.window_should_close(self.window.win) and not self._quit:
             busy = self._script_busy() or opts.snapshot is not None
             now = time.perf_counter()
@@ -538,10 +546,13 @@ class PreviewApp:
             active = now - self._last_input < UI_ACTIVE_S
             if rendered or active or busy or self._shots or ticks < 2:
                 self._draw()
-                dt = now - last
+                if drew_last:  # frame-to-frame time of consecutive draws only
+                    self._frame_times.append(now - last)
+                    self.panels.fps = 1.0 / max(float(np.median(self._frame_times)), 1e-6)
                 last = now
-                self._frame_times = (self._frame_times + [dt])[-30:]
-                self.panels.fps = 1.0 / max(float(np.median(self._frame_times)), 1e-6)
+                drew_last = True
+            else:
+                drew_last = False
             ticks += 1
             if not self._script_busy():
                 if opts.snapshot is not None:
