@@ -175,7 +175,7 @@ def test_script_parses_every_event_kind(tmp_path):
     [
         ([{"jump": 1}], "event 1: unknown event 'jump'"),
         ([{"wait": -1}], "'wait' needs a frame count"),
-        ([{"orbit": [1]}], "'orbit' needs [dx, dy]"),
+        ([{"orbit": [1]}], "'orbit' needs two numbers"),
         ([{"wait": 1}, {"temporal": "fast"}], "event 2: 'temporal' must be one of"),
         ([{"light": "/L"}], "'light' needs at least one of"),
         ([{"light": "/L", "color": [1, 2]}], "'color' must be [r, g, b]"),
@@ -298,6 +298,10 @@ def test_method_switch_options_views_and_bad_values(scene, gl_ctx, tmp_path):
         _converge(s)
         img = s.view_image()
         assert img.shape == (H, W, 3) and img.dtype == np.uint8 and img.max() > 0
+        from stb_hydra.io.debug_views import LEGEND_ROWS
+
+        bar = img[-LEGEND_ROWS + 5].astype(int)  # the colour scale: black (0) ... red (many)
+        assert bar[1].sum() < 30 and bar[-2, 0] > bar[-2, 2] + 40
         assert s.set_view("bigtile") and s.set_method("reference")
         assert s.view == "color"  # the stb-only view is dropped with the method
         assert not s.set_view("bigtile")
@@ -345,3 +349,64 @@ def test_missing_and_broken_stages_are_one_line_errors(tmp_path, gl_ctx):
     bad.write_text("#usda 1.0\ndef Mesh (\n")
     s = PreviewSession(bad, RenderSettings(width=W, height=H), ctx=gl_ctx)
     assert not s.ok and "bad.usda" in s.error and "\n" not in s.error
+
+
+@pytest.mark.gl
+def test_pick_selects_the_prim_under_the_pixel(scene, gl_ctx):
+    """The box's centre and a floor pixel, located with the stage camera's own
+    projection (USD's frustum, not the renderer's)."""
+    from pxr import Gf, Usd, UsdGeom
+
+    s = _session(scene, gl_ctx, "reference", max_samples=1)
+    try:
+        _converge(s)
+        # the camera's aperture is 16:9 like the viewport: its window maps to NDC [-1, 1]
+        frustum = UsdGeom.Camera(s.stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode()).frustum
+        to_ndc = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
+
+        def pixel(p):
+            ndc = to_ndc.Transform(Gf.Vec3d(*p))
+            return int((ndc[0] + 1) * 0.5 * W), int((1 - ndc[1]) * 0.5 * H)
+
+        assert s.pick(*pixel((0.0, 0.6, 0.5))) == "/Box"
+        assert s.selected == "/Box"
+        assert s.pick(*pixel((-4.0, 0.0, 2.0))) == "/Ground"  # near the left edge
+        assert s.pick(0, 0) is None and s.selected is None  # sky: nothing
+    finally:
+        s.release()
+
+
+ANIMATED_USDA = TWO_LIGHTS_USDA.replace(
+    "#usda 1.0\n(\n", "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 10\n"
+).replace(
+    "double3 xformOp:translate = (-3, 1, 0)",
+    "double3 xformOp:translate.timeSamples = { 1: (-3, 1, 0), 10: (3, 1, 0) }",
+)
+
+
+@pytest.mark.gl
+def test_time_scrub_and_play_move_animated_lights_through_the_scene_index(tmp_path, gl_ctx):
+    p = tmp_path / "anim.usda"
+    p.write_text(ANIMATED_USDA)
+    s = _session(p, gl_ctx, "reference", max_samples=1)
+    try:
+        assert s.time_range() == (1.0, 10.0)
+        _converge(s)
+        assert s.time == 1.0
+        a = _display(s)
+        index = s.engine.scene_index
+        s.set_time(10.0)  # the warm light moves from x = -3 to x = +3
+        _converge(s)
+        assert s.engine.scene_index is index and s.time == 10.0  # no reload
+        b = _display(s)
+        third = W // 3
+        assert b[:, :third, 0].mean() < 0.7 * a[:, :third, 0].mean()
+        assert b[:, -third:, 0].mean() > 1.2 * a[:, -third:, 0].mean()
+        s.set_playing(True)  # one time code per frame, wrapping at the end
+        assert s.step() and s.time == 1.0
+        assert s.step() and s.time == 2.0
+        s.set_playing(False)
+        _converge(s)
+        assert s.time == 2.0
+    finally:
+        s.release()

@@ -23,6 +23,7 @@ event takes effect before the next frame is rendered:
 ``{"view": "lightcount"}``                         show an AOV or debug view (``color``: back)
 ``{"exposure": stops}`` / ``{"ocio_view": NAME}``  display exposure / OCIO view
 ``{"select": PATH}``                               select a prim (F frames it)
+``{"pick": [x, y]}``                               select the prim at a pixel (a click)
 ``{"ui": false}``                                  hide or show the panels
 ``{"screenshot": FILE}``                           write what the window shows (OIIO)
 ``{"save_edits": FILE}``                           write the session layer's edits
@@ -59,6 +60,7 @@ EVENT_TYPES: dict[str, tuple[type, ...]] = {
     "exposure": _NUM,
     "ocio_view": (str,),
     "select": (str,),
+    "pick": (list,),
     "ui": (bool,),
     "screenshot": (str,),
     "save_edits": (str,),
@@ -89,11 +91,11 @@ class Event:
 
 
 def _check(where: str, kind: str, value: Any, extra: dict[str, Any]) -> None:
-    if kind in ("orbit", "track"):
+    if kind in ("orbit", "track", "pick"):
         if len(value) != 2 or not all(
             isinstance(v, _NUM) and not isinstance(v, bool) for v in value
         ):
-            raise ScriptError(f"{where}: '{kind}' needs [dx, dy] in pixels, got {value!r}")
+            raise ScriptError(f"{where}: '{kind}' needs two numbers (pixels), got {value!r}")
     if kind == "wait":
         ok = (isinstance(value, int) and not isinstance(value, bool) and value >= 0) or (
             value == "converged"

@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import limits
 from ..color.ocio import ColorPipeline
+from ..io.debug_views import LEGEND_ROWS, legend_strip
 from ..renderer.engine import Engine, RenderError
 from ..renderer.frame import RenderSettings
 from ..renderer.gl import GLError
@@ -42,6 +43,7 @@ from ..scene.prims import LightPrim
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import render_from_stage_matrix
 from .camera import OrbitCamera
+from .picking import Picker
 
 #: Temporal modes of the previewer (``auto``: accumulate while still, taa while moving).
 TEMPORAL_MODES = ("auto", "accumulate", "taa", "off")
@@ -105,6 +107,8 @@ class PreviewSession:
         self._scene_dirty = False
         self._force = True  # the first frame
         self._last_frame: Any = None
+        self._picker: Picker | None = None
+        self._legends: dict[tuple[str, int], np.ndarray] = {}
         self._time: float | None = time
         self._time_changed = False
         settings.temporal = "accumulate" if temporal == "auto" else temporal
@@ -271,7 +275,15 @@ class PreviewSession:
         a = self.engine.aovs.get(self.view)
         if a is None:
             return None
-        return view_to_rgb8(self.view, a)
+        img = view_to_rgb8(self.view, a)
+        if self.view in DEBUG_AOVS and img.shape[0] >= 2 * LEGEND_ROWS:
+            # the debug view's colour scale over its bottom rows
+            key = (self.view, img.shape[1])
+            if key not in self._legends:
+                strip = legend_strip(self.view, img.shape[1])
+                self._legends[key] = (np.clip(strip, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+            img[-LEGEND_ROWS:] = self._legends[key]
+        return img
 
     def resize(self, width: int, height: int) -> None:
         """The viewport's new size (pixels); render buffers follow on the next frame."""
@@ -633,6 +645,23 @@ class PreviewSession:
         self.selected = path
         return True
 
+    def pick(self, x: int, y: int) -> str | None:
+        """Select the prim covering viewport pixel (x, y) (top-left origin; ID buffer);
+        the background clears the selection. Returns the selected path."""
+        from ..renderer.camera import view_setup
+        if not self.ok:
+            return None
+        e = self.engine
+        assert e is not None
+        if self._picker is None:
+            self._picker = Picker(e.ctx)
+        self._apply_camera()
+        cam, exposure = e.camera()
+        w, h = self.size
+        path = self._picker.pick(e.delegate, view_setup(cam, w, h, exposure), int(x), int(y))
+        self.selected = path
+        return path
+
     def properties(self, path: str) -> list[tuple[str, str]]:
         """A prim's properties as (name, value) text: type, lights in physical units
         (as ``stb inspect`` reports them), then the attributes' values at the time."""
@@ -670,6 +699,9 @@ class PreviewSession:
         return None if sp is None else sp.light
 
     def release(self) -> None:
+        if self._picker is not None:
+            self._picker.release()
+            self._picker = None
         if self.engine is not None:
             self.engine.release()
             self.engine = None

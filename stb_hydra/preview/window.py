@@ -36,6 +36,7 @@ EXPOSURE_STEP = 0.5
 UI_ACTIVE_S = 0.5
 
 BINDINGS = (
+    ("LMB click", "select the prim under the cursor (ID buffer)"),
     ("Alt+LMB drag", "tumble"),
     ("Alt+MMB drag", "track"),
     ("Alt+RMB drag / wheel", "dolly"),
@@ -228,10 +229,13 @@ class PreviewApp:
         self._shots: list[str] = []
         self._last_input = 0.0
         self._drag: tuple[int, float, float] | None = None
+        self._click: tuple[float, float] | None = None
         self._mouse = (0.0, 0.0)
         self._fly_keys: set[int] = set()
         self._quit = False
         self._shot_counter = 0
+        #: Wall time (ms) of the last frame's panels: imgui frame + its draw (CPU side).
+        self.ui_ms = 0.0
         self._frame_times: deque[float] = deque(maxlen=30)
         self._install_callbacks()
 
@@ -329,11 +333,23 @@ class PreviewApp:
     def _on_button(self, win: Any, button: int, action: int, mods: int) -> None:
         self._last_input = time.perf_counter()
         self.gui.mouse_button_callback(win, button, action, mods)
-        if action == glfw.PRESS and not self._ui_wants("mouse") and mods & glfw.MOD_ALT:
-            x, y = glfw.get_cursor_pos(win)
-            self._drag = (button, x, y)
+        x, y = glfw.get_cursor_pos(win)
+        if action == glfw.PRESS and not self._ui_wants("mouse"):
+            if mods & glfw.MOD_ALT:
+                self._drag = (button, x, y)
+            elif button == glfw.MOUSE_BUTTON_LEFT:
+                self._click = (x, y)
         elif action == glfw.RELEASE:
             self._drag = None
+            c, self._click = self._click, None
+            if c is not None and button == glfw.MOUSE_BUTTON_LEFT and abs(x - c[0]) + abs(y - c[1]) < 4:
+                self._pick_at(x, y)
+
+    def _pick_at(self, x: float, y: float) -> None:
+        """A click: select the prim under the cursor (window -> viewport pixels)."""
+        ww, wh = glfw.get_window_size(self.window.win)
+        vw, vh = self.session.size if self.session.ok else (ww, wh)
+        self.session.pick(int(x * vw / max(ww, 1)), int(y * vh / max(wh, 1)))
 
     def _on_cursor(self, win: Any, x: float, y: float) -> None:
         self._last_input = time.perf_counter()
@@ -443,6 +459,8 @@ class PreviewApp:
             s.set_ocio_view(v)
         elif k == "select":
             s.select(v)
+        elif k == "pick":
+            print(f"stb preview: picked {s.pick(int(v[0]), int(v[1]))}", flush=True)
         elif k == "ui":
             self.show_ui = bool(v)
         elif k == "screenshot":
@@ -465,6 +483,7 @@ class PreviewApp:
         view = s.view_image()
         tex = self.window.image_texture(view) if view is not None else s.display_texture()
         self.window.draw_texture(tex)
+        t_ui = time.perf_counter()
         self.gui.process_inputs()
         imgui.new_frame()
         size = self.window.framebuffer_size()
@@ -481,6 +500,7 @@ class PreviewApp:
             # one left by an earlier draw: read (and so clear) it first.
             _ = self.window.ctx.error
             self.gui.render(imgui.get_draw_data())
+        self.ui_ms = (time.perf_counter() - t_ui) * 1e3
         for path in self._shots:
             self._write_screenshot(path)
         self._shots.clear()
