@@ -410,3 +410,66 @@ def test_time_scrub_and_play_move_animated_lights_through_the_scene_index(tmp_pa
         assert s.time == 2.0
     finally:
         s.release()
+
+
+@pytest.mark.gl
+def test_live_reload_keeps_the_camera_and_survives_a_broken_file(scene, gl_ctx):
+    """The file changes on disk (watchdog): reloaded, same camera; then it breaks:
+    the last good scene stays and the message says why; then it is fixed again."""
+    import time
+
+    s = _session(scene, gl_ctx, "reference", max_samples=1)
+    try:
+        assert s.watch()
+        s.tumble(30.0, 0.0)  # a free-camera view that a reload must keep
+        _converge(s)
+        orbit = (s.orbit.yaw, s.orbit.pitch, s.orbit.distance)
+        a = _display(s)
+
+        def wait_reload(n):
+            t0 = time.monotonic()
+            while s.reloads < n:
+                s.step()
+                time.sleep(0.05)
+                assert time.monotonic() - t0 < 20, "no reload within 20 s"
+            _converge(s)
+
+        scene.write_text(
+            TWO_LIGHTS_USDA.replace(
+                "float inputs:intensity = 3000", "float inputs:intensity = 300", 1
+            )
+        )
+        wait_reload(1)
+        b = _display(s)
+        assert (s.orbit.yaw, s.orbit.pitch, s.orbit.distance) == orbit and s.camera_path is None
+        assert b[:, : W // 3].mean() < 0.7 * a[:, : W // 3].mean()  # the left light dimmed
+        scene.write_text("#usda 1.0\ndef Mesh (\n")
+        wait_reload(2)
+        assert s.ok and "cannot reload" in s.message and "last good scene" in s.message
+        assert np.array_equal(_display(s), b)
+        scene.write_text(TWO_LIGHTS_USDA)
+        wait_reload(3)
+        assert s.message is None
+        assert np.abs(_display(s) - a).mean() < 1.0
+    finally:
+        s.release()
+
+
+@pytest.mark.gl
+def test_shadow_atlas_view_outlines_every_map(scene, gl_ctx):
+    from stb_hydra.preview.atlas_view import STATIC
+
+    s = _session(scene, gl_ctx, "reference", max_samples=1)
+    try:
+        _converge(s)
+        assert s.set_view("shadow_atlas")
+        img = s.view_image()
+        assert img.shape == (H, W, 3)
+        outline = np.all(img == np.array(STATIC, np.uint8), axis=-1)
+        task = s.engine.task("shadow_atlas")
+        assert sorted(task.registered_keys()) == ["/Lights/Left", "/Lights/Right"]
+        assert outline.sum() > 0  # both static maps outlined in green
+        inner = img[~outline]
+        assert inner.max() > 24  # the atlas depths drawn in grey inside the square
+    finally:
+        s.release()

@@ -60,6 +60,9 @@ def add_parser(sub) -> None:
     p.add_argument("--no-ui", action="store_true", help="start with the panels hidden (H)")
     p.add_argument("--screenshot-dir", default=".", help="where P / F12 screenshots go")
     p.add_argument("--exit-after-script", action="store_true", help="close when the script ends")
+    p.add_argument(
+        "--no-watch", action="store_true", help="no live reload when the stage's files change"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed of stochastic methods")
     p.set_defaults(func=main)
 
@@ -127,6 +130,7 @@ def _main(args: argparse.Namespace) -> int:
         show_ui=not args.no_ui,
         screenshot_dir=args.screenshot_dir,
         exit_after_script=args.exit_after_script,
+        watch=not args.no_watch,
     )
     try:
         app = PreviewApp(

@@ -21,6 +21,8 @@ decides, frame by frame, what to render:
 from __future__ import annotations
 
 import math
+import os
+import threading
 import time as _time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -42,6 +44,7 @@ from ..renderer.tasks.aov_output import AOVS, DEBUG_AOVS
 from ..scene.prims import LightPrim
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import render_from_stage_matrix
+from .atlas_view import AtlasView
 from .camera import OrbitCamera
 from .picking import Picker
 
@@ -49,7 +52,10 @@ from .picking import Picker
 TEMPORAL_MODES = ("auto", "accumulate", "taa", "off")
 #: Views the viewport can show: the display image, then every AOV (the debug views
 #: of a method only while that method is active).
-VIEWS = tuple(a for a in AOVS if a != "display")
+VIEWS = (*(a for a in AOVS if a != "display"), "shadow_atlas")
+#: Live reload: a changed layer is reloaded once its file has been quiet this long (s);
+#: editors often write a file in several steps.
+RELOAD_SETTLE_S = 0.2
 #: Default still-frame sample budget (``--max-samples``).
 DEFAULT_MAX_SAMPLES = 64
 
@@ -108,7 +114,14 @@ class PreviewSession:
         self._force = True  # the first frame
         self._last_frame: Any = None
         self._picker: Picker | None = None
+        self._atlas_view: AtlasView | None = None
         self._legends: dict[tuple[str, int], np.ndarray] = {}
+        self._observer: Any = None
+        self._lock = threading.Lock()
+        self._changed_files: set[str] = set()
+        self._changed_at = 0.0
+        #: Layer reloads done (live reload).
+        self.reloads = 0
         self._time: float | None = time
         self._time_changed = False
         settings.temporal = "accumulate" if temporal == "auto" else temporal
@@ -134,6 +147,79 @@ class PreviewSession:
             self.orbit = OrbitCamera.framing(lo, hi, self.aspect)
             self.orbit.scene_radius = self._scene_radius
             self._apply_camera()
+
+    # -- live reload --
+    def watch(self) -> bool:
+        """Watch the stage's layer files (watchdog): a change reloads that layer on the
+        next frame (the camera and edits stay); a layer that no longer parses keeps
+        the last good scene and says why in :attr:`message`. False if not watchable."""
+        if not self.ok or self._observer is not None:
+            return False
+        try:
+            from watchdog.events import FileSystemEvent, FileSystemEventHandler
+            from watchdog.observers import Observer
+        except ImportError:
+            self.message = "live reload needs watchdog (the preview extra)"
+            return False
+        files = {
+            os.path.realpath(layer.realPath)
+            for layer in self.stage.GetUsedLayers()
+            if layer.realPath and not layer.anonymous
+        }
+        session = self
+
+        class _Handler(FileSystemEventHandler):
+            def on_any_event(self, event: FileSystemEvent) -> None:
+                for p in (event.src_path, getattr(event, "dest_path", "")):
+                    if p and os.path.realpath(os.fsdecode(p)) in files:
+                        with session._lock:
+                            session._changed_files.add(os.path.realpath(os.fsdecode(p)))
+                            session._changed_at = _time.monotonic()
+
+        obs = Observer()
+        for d in sorted({os.path.dirname(f) for f in files}):
+            obs.schedule(_Handler(), d, recursive=False)
+        obs.daemon = True
+        obs.start()
+        self._observer = obs
+        return True
+
+    def _reload_changed(self) -> None:
+        """Reload the layers whose files changed (after RELOAD_SETTLE_S of quiet)."""
+        from pxr import Tf
+
+        from ..scene.stage_io import tf_message
+
+        with self._lock:
+            if not self._changed_files or _time.monotonic() - self._changed_at < RELOAD_SETTLE_S:
+                return
+            changed, self._changed_files = self._changed_files, set()
+        errors = []
+        for layer in self.stage.GetUsedLayers():
+            real = os.path.realpath(layer.realPath) if layer.realPath else ""
+            if real not in changed:
+                continue
+            try:
+                ok = layer.Reload(force=True)
+            except Tf.ErrorException as exc:
+                ok = False
+                errors.append(f"cannot reload '{real}': {tf_message(exc, stage_file=real)}")
+                continue
+            if not ok:
+                errors.append(f"cannot reload '{real}': unreadable or missing")
+        self.reloads += 1
+        if errors:
+            self.message = "; ".join(errors) + " (showing the last good scene)"
+        elif self.message and "cannot reload" in self.message:
+            self.message = None
+        self._scene_dirty = True
+
+    def _camera_path_gone(self) -> None:
+        """The stage camera went away: the free camera continues from the last view."""
+        assert self.engine is not None and self.orbit is not None
+        self.camera_path = None
+        self._camera_dirty = True
+        self._apply_camera()
 
     # -- basic properties --
     @property
@@ -195,6 +281,7 @@ class PreviewSession:
             or self._force
             or self.playing
             or self._time_changed
+            or bool(self._changed_files)
             or (e is not None and e.scene_index.has_pending_updates)
         )
 
@@ -205,6 +292,8 @@ class PreviewSession:
             return False
         e = self.engine
         assert e is not None
+        if self._observer is not None:
+            self._reload_changed()
         moving = bool(
             self._camera_dirty
             or self._scene_dirty
@@ -229,7 +318,15 @@ class PreviewSession:
         t0 = _time.perf_counter()
         try:
             frame = e.render_frame(time=time, final=True)
-        except (RenderError, GLError, ValueError) as exc:
+        except RenderError as exc:
+            if self.camera_path is None or self.camera_path in self.cameras():
+                self.error = _one_line(exc)
+                return False
+            # the stage camera went away (a reload, an edit): the free camera takes over
+            self.message = f"camera '{self.camera_path}' is gone; free camera"
+            self._camera_path_gone()
+            return self.step()
+        except (GLError, ValueError) as exc:
             self.error = _one_line(exc)
             return False
         dt = (_time.perf_counter() - t0) * 1e3
@@ -272,6 +369,10 @@ class PreviewSession:
         if self.view == "color" or not self.ok:
             return None
         assert self.engine is not None
+        if self.view == "shadow_atlas":
+            if self._atlas_view is None:
+                self._atlas_view = AtlasView(self.engine.ctx)
+            return self._atlas_view.image(self.engine, *self.size)
         a = self.engine.aovs.get(self.view)
         if a is None:
             return None
@@ -468,7 +569,7 @@ class PreviewSession:
                 f"view '{name}' not offered by '{self.method}' (views: {', '.join(self.views())})"
             )
             return False
-        self.engine.request_aovs(set() if name == "color" else {name})
+        self.engine.request_aovs(set() if name in ("color", "shadow_atlas") else {name})
         self.view = name
         self._force = True
         return True
@@ -649,6 +750,7 @@ class PreviewSession:
         """Select the prim covering viewport pixel (x, y) (top-left origin; ID buffer);
         the background clears the selection. Returns the selected path."""
         from ..renderer.camera import view_setup
+
         if not self.ok:
             return None
         e = self.engine
@@ -699,9 +801,16 @@ class PreviewSession:
         return None if sp is None else sp.light
 
     def release(self) -> None:
+        if self._observer is not None:
+            self._observer.stop()
+            self._observer.join(5.0)
+            self._observer = None
         if self._picker is not None:
             self._picker.release()
             self._picker = None
+        if self._atlas_view is not None:
+            self._atlas_view.release()
+            self._atlas_view = None
         if self.engine is not None:
             self.engine.release()
             self.engine = None

@@ -88,6 +88,8 @@ class RunOptions:
     title: str = "stb preview"
     #: Exit once the script has run (also without --snapshot).
     exit_after_script: bool = False
+    #: Live reload: watch the stage's layer files.
+    watch: bool = True
 
 
 class PreviewWindow:
@@ -209,6 +211,8 @@ class PreviewApp:
         if self.session.error:
             self._report(self.session.error)
             self.exit_code = 2
+        elif opts.watch:
+            self.session.watch()
         from imgui_bundle import imgui
         from imgui_bundle.python_backends.glfw_backend import GlfwRenderer
 
@@ -342,7 +346,11 @@ class PreviewApp:
         elif action == glfw.RELEASE:
             self._drag = None
             c, self._click = self._click, None
-            if c is not None and button == glfw.MOUSE_BUTTON_LEFT and abs(x - c[0]) + abs(y - c[1]) < 4:
+            if (
+                c is not None
+                and button == glfw.MOUSE_BUTTON_LEFT
+                and abs(x - c[0]) + abs(y - c[1]) < 4
+            ):
                 self._pick_at(x, y)
 
     def _pick_at(self, x: float, y: float) -> None:
