@@ -21,7 +21,9 @@ from ..renderer.frame import RenderSettings
 from .window import PreviewApp, RunOptions
 
 
-def measure(scene: str, width: int, height: int, frames: int, lighting: str) -> dict[str, float]:
+def measure(
+    scene: str, width: int, height: int, frames: int, lighting: str
+) -> dict[str, float | str]:
     """Median tick times (ms) with and without the panels, and the panels' own time."""
     settings = RenderSettings(width=width, height=height, lighting=lighting)
     app = PreviewApp(scene, settings, RunOptions(), max_samples=1_000_000)
