@@ -3,9 +3,10 @@
     python -m stb_hydra.preview.bench SCENE [--width 640 --height 360] [--frames 60]
 
 The camera tumbles by 2 px every frame (the interactive case: ``temporal=taa``, a new
-frame each tick). Frames alternate between panels shown and hidden, in one process,
-so both see the same machine load; each tick is timed from input to ``ctx.finish()``
-after the swap. Prints medians (ms) and the overhead ratio as JSON.
+frame each tick); ``--still`` keeps it still (accumulation, one sample a tick).
+Frames alternate between panels shown and hidden, in one process, so both see the same
+machine load; each tick is timed from input to ``ctx.finish()`` after the swap.
+Prints medians (ms) and the overhead ratio as JSON.
 """
 
 from __future__ import annotations
@@ -22,9 +23,11 @@ from .window import PreviewApp, RunOptions
 
 
 def measure(
-    scene: str, width: int, height: int, frames: int, lighting: str
+    scene: str, width: int, height: int, frames: int, lighting: str, still: bool = False
 ) -> dict[str, float | str]:
-    """Median tick times (ms) with and without the panels, and the panels' own time."""
+    """Median tick times (ms) with and without the panels, and the panels' own time.
+    ``still``: no camera motion (accumulation, one new sample a frame) instead of a
+    tumble every frame (taa)."""
     settings = RenderSettings(width=width, height=height, lighting=lighting)
     app = PreviewApp(scene, settings, RunOptions(), max_samples=1_000_000)
     if app.session.error:
@@ -39,7 +42,10 @@ def measure(
             app.show_ui = ui
             t0 = time.perf_counter()
             glfw.poll_events()
-            app.session.tumble(2.0, 0.0)
+            if still:
+                app.session._force = True  # one more sample even if nothing moved
+            else:
+                app.session.tumble(2.0, 0.0)
             t1 = time.perf_counter()
             app.session.step()
             ctx.finish()
@@ -60,6 +66,8 @@ def measure(
         "width": width,
         "height": height,
         "lighting": lighting,
+        "camera": "still (accumulate)" if still else "tumbling (taa)",
+        "temporal": app.session.hud.temporal,
         "frames": frames,
         "tick_ms_with_ui": round(with_ui, 2),
         "tick_ms_without_ui": round(without, 2),
@@ -77,8 +85,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--lighting", default="stb")
+    ap.add_argument("--still", action="store_true", help="no camera motion (accumulate)")
     a = ap.parse_args(argv)
-    print(json.dumps(measure(a.scene, a.width, a.height, a.frames, a.lighting)))
+    print(json.dumps(measure(a.scene, a.width, a.height, a.frames, a.lighting, a.still)))
     return 0
 
 

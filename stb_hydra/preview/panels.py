@@ -110,6 +110,32 @@ def _render_tab(s: PreviewSession) -> None:
     m = _combo("method", s.method, s.methods)
     if m is not None:
         s.set_method(m)
+    t = _combo("temporal", s.temporal, list(TEMPORAL_MODES))
+    if t is not None:
+        s.set_temporal(t)
+    ch, n = imgui.slider_int("max samples", s.max_samples, 1, 1024)
+    if ch:
+        s.max_samples = max(1, n)
+    view = _combo("view", s.view, s.views())
+    if view is not None:
+        s.set_view(view)
+    ch, ev = imgui.slider_float("exposure", s.exposure, -8.0, 8.0, "%.2f stops")
+    if ch:
+        s.set_exposure(ev)
+    if s.engine is not None:
+        ov = _combo("OCIO view", s.engine.color.view, s.engine.color.views())
+        if ov is not None:
+            s.set_ocio_view(ov)
+        cams = ["(free camera)", *s.cameras()]
+        c = _combo("camera", s.camera_path or cams[0], cams)
+        if c is not None:
+            s.set_camera(None if c == cams[0] else c)
+    if imgui.collapsing_header(f"{s.method} options"):
+        _method_options(s)
+
+
+def _method_options(s: PreviewSession) -> None:
+    """One widget per option of the current method (its schema: type, choices)."""
     opts: dict[str, Any] = s.options
     schema = getattr(s.engine.method, "options", None) if s.engine is not None else None
     for opt in schema or ():
@@ -134,26 +160,6 @@ def _render_tab(s: PreviewSession) -> None:
             continue
         if ch:
             s.set_options(**{opt.name: val})
-    t = _combo("temporal", s.temporal, list(TEMPORAL_MODES))
-    if t is not None:
-        s.set_temporal(t)
-    ch, n = imgui.slider_int("max samples", s.max_samples, 1, 1024)
-    if ch:
-        s.max_samples = max(1, n)
-    view = _combo("view", s.view, s.views())
-    if view is not None:
-        s.set_view(view)
-    ch, ev = imgui.slider_float("exposure", s.exposure, -8.0, 8.0, "%.2f stops")
-    if ch:
-        s.set_exposure(ev)
-    if s.engine is not None:
-        ov = _combo("OCIO view", s.engine.color.view, s.engine.color.views())
-        if ov is not None:
-            s.set_ocio_view(ov)
-        cams = ["(free camera)", *s.cameras()]
-        c = _combo("camera", s.camera_path or cams[0], cams)
-        if c is not None:
-            s.set_camera(None if c == cams[0] else c)
 
 
 def _lights_tab(s: PreviewSession) -> None:
