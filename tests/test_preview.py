@@ -305,6 +305,11 @@ def test_method_switch_options_views_and_bad_values(scene, gl_ctx, tmp_path):
         assert s.set_view("bigtile") and s.set_method("reference")
         assert s.view == "color"  # the stb-only view is dropped with the method
         assert not s.set_view("bigtile")
+        color = s.engine.color
+        other = next(v for v in color.views() if v != color.view)
+        assert s.set_ocio_view(other) and s.engine.color.view == other
+        assert not s.set_ocio_view("No Such View") and "unknown OCIO view" in s.message
+        assert s.engine.color.view == other  # a bad view keeps the current one
         out = s.save_edits(tmp_path / "edits.usda")
         assert out is not None and out.read_text().startswith("#usda 1.0")
     finally:

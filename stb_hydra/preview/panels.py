@@ -123,6 +123,9 @@ def _render_tab(s: PreviewSession) -> None:
     if ch:
         s.set_exposure(ev)
     if s.engine is not None:
+        od = _combo("OCIO display", s.engine.color.display, s.engine.color.displays())
+        if od is not None:
+            s.set_ocio_display(od)
         ov = _combo("OCIO view", s.engine.color.view, s.engine.color.views())
         if ov is not None:
             s.set_ocio_view(ov)

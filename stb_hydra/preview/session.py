@@ -591,15 +591,19 @@ class PreviewSession:
         self._force = True
         return True
 
-    def set_ocio_view(self, view: str) -> bool:
-        """Switch the OCIO view (same config and display)."""
+    def set_ocio_display(self, display: str) -> bool:
+        """Switch the OCIO display (its default view; same config and exposure)."""
+        return self.set_ocio_view(None, display)
+
+    def set_ocio_view(self, view: str | None, display: str | None = None) -> bool:
+        """Switch the OCIO view (same config; ``display``: another display too)."""
         if not self.ok:
             return False
         e = self.engine
         assert e is not None
         old = e.color
         try:
-            new = ColorPipeline(old.config_source, old.display, view, old.exposure)
+            new = ColorPipeline(old.config_source, display or old.display, view, old.exposure)
         except ValueError as exc:
             self.message = _one_line(exc)
             return False
