@@ -337,6 +337,8 @@ def test_camera_switch_frame_and_properties(scene, gl_ctx):
         assert not s.set_camera("/Nope")
         props = dict(s.properties("/Lights/Left"))
         assert props["type"] == "SphereLight" and "intensity [cd]" in props
+        assert props["shadow"] == "on static" and float(props["range [m]"]) > 3.0
+        assert props["inputs:intensity"] == "3000"
         assert "/Lights/Left" in s.prim_paths("left")
         assert s.children("/Lights") == ["/Lights/Left", "/Lights/Right"]
     finally:
@@ -476,5 +478,44 @@ def test_shadow_atlas_view_outlines_every_map(scene, gl_ctx):
         assert outline.sum() > 0  # both static maps outlined in green
         inner = img[~outline]
         assert inner.max() > 24  # the atlas depths drawn in grey inside the square
+    finally:
+        s.release()
+
+
+def test_prim_tree_and_search_include_instance_proxies(tmp_path, gl_ctx):
+    p = tmp_path / "inst.usda"
+    p.write_text(
+        TWO_LIGHTS_USDA
+        + """
+def Xform "Proto"
+{
+    def Cube "Part"
+    {
+        double size = 0.2
+    }
+}
+def Xform "Inst1" (
+    instanceable = true
+    references = </Proto>
+)
+{
+    double3 xformOp:translate = (2, 0, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def Xform "Inst2" (
+    instanceable = true
+    references = </Proto>
+)
+{
+    double3 xformOp:translate = (-2, 0, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+    )
+    s = _session(p, gl_ctx, "reference", max_samples=1)
+    try:
+        assert s.children("/Inst1") == ["/Inst1/Part"]  # an instance proxy
+        assert {"/Inst1/Part", "/Inst2/Part", "/Proto/Part"} <= set(s.prim_paths("part"))
+        assert s.select("/Inst2/Part") and dict(s.properties("/Inst2/Part"))["type"] == "Cube"
     finally:
         s.release()

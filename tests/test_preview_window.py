@@ -78,17 +78,27 @@ def _start(display, args, tmp: Path, events=None) -> subprocess.Popen:
     )
 
 
-def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 60.0) -> int:
-    """Read the previewer's stdout up to ``mark NAME``; returns the X window id."""
-    t0 = time.monotonic()
+def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tuple[int, str]:
+    """Read the previewer's stdout up to ``mark NAME`` (at most ``timeout`` s); returns
+    the X window id and the selected prim path."""
+    import selectors
+
     assert proc.stdout is not None
-    for line in proc.stdout:
-        if line.startswith(f"stb preview: mark {name} "):
-            return int(line.rsplit("window=", 1)[1], 16)
-        if time.monotonic() - t0 > timeout:
+    sel = selectors.DefaultSelector()
+    sel.register(proc.stdout, selectors.EVENT_READ)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
             break
+        line = proc.stdout.readline()
+        if not line:  # the previewer exited
+            break
+        if line.startswith(f"stb preview: mark {name} "):
+            fields = dict(f.split("=", 1) for f in line.split()[4:])
+            return int(fields["window"], 16), fields["selected"]
     proc.kill()
-    raise AssertionError(f"no 'mark {name}' from the previewer: {proc.stderr.read()}")
+    _, err = proc.communicate(timeout=30)
+    raise AssertionError(f"no 'mark {name}' from the previewer within {timeout} s: {err}")
 
 
 def _finish(proc: subprocess.Popen, timeout: float = 90.0) -> tuple[int, str, str]:
@@ -151,7 +161,7 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
     args = [scene, "--width", W, "--height", H, "--max-samples", 8, "--no-ui"]
     args += ["--snapshot", snap, "--after-frames", 2, "--screenshot-dir", tmp_path]
     proc = _start(display, args, tmp_path, events)
-    win = _wait_mark(proc, "ready")
+    win, _ = _wait_mark(proc, "ready")
     _xdo(display, "mousemove", "--window", str(win), "20", "20")
     _xdo(display, "key", "p")  # the screenshot key: stb_preview_0001.png
     time.sleep(0.5)
@@ -186,8 +196,9 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
 
 
 @pytest.mark.gl
-def test_alt_drag_with_xdotool_tumbles_the_camera(display, scene, tmp_path):
-    """Real mouse input: Alt + left drag in the window orbits the camera."""
+def test_click_picks_and_alt_drag_tumbles_with_xdotool(display, scene, tmp_path):
+    """Real mouse input: a click on the box selects it (ID buffer); Alt + left drag
+    orbits the camera."""
     events = [
         {"wait": "converged"},
         {"screenshot": "before.png"},
@@ -195,27 +206,24 @@ def test_alt_drag_with_xdotool_tumbles_the_camera(display, scene, tmp_path):
         {"sleep": 3},
         {"wait": "converged"},
         {"screenshot": "after.png"},
+        {"mark": "done"},
         {"quit": True},
     ]
-    args = [
-        scene,
-        "--width",
-        W,
-        "--height",
-        H,
-        "--max-samples",
-        4,
-        "--no-ui",
-        "--lighting",
-        "reference",
-    ]
-    proc = _start(display, args, tmp_path, events)
-    win = _wait_mark(proc, "ready")
+    args = [scene, "--width", W, "--height", H, "--max-samples", 4, "--no-ui"]
+    proc = _start(display, [*args, "--lighting", "reference"], tmp_path, events)
+    win, selected = _wait_mark(proc, "ready")
+    assert selected == "-"
+    # the box's front face through /Cam (16:9 like the window): (0, 0.6, 0.5) projects
+    # to NDC (0, 0.016) (USD's frustum, see test_preview.py's picking test)
+    _xdo(display, "mousemove", "--window", str(win), str(W // 2), str(int(0.492 * H)))
+    _xdo(display, "click", "1")
     _xdo(display, "mousemove", "--window", str(win), "60", "70")
     _xdo(display, "keydown", "alt", "mousedown", "1")
     for _ in range(4):
         _xdo(display, "mousemove_relative", "--", "20", "0")
     _xdo(display, "mouseup", "1", "keyup", "alt")
+    _, selected = _wait_mark(proc, "done")
+    assert selected == "/Box"
     code, _, err = _finish(proc)
     assert code == 0, err
     before, after = _png(tmp_path / "before.png"), _png(tmp_path / "after.png")

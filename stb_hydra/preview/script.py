@@ -27,7 +27,8 @@ event takes effect before the next frame is rendered:
 ``{"ui": false}``                                  hide or show the panels
 ``{"screenshot": FILE}``                           write what the window shows (OIIO)
 ``{"save_edits": FILE}``                           write the session layer's edits
-``{"mark": TEXT}``                                 print ``stb preview: mark TEXT`` on stdout
+``{"mark": TEXT}``                                 print ``stb preview: mark TEXT window=0x..
+                                                   selected=PATH`` on stdout
 ``{"quit": true}``                                 close the window (exit 0)
 =================================================  ======================================
 """

@@ -41,6 +41,7 @@ from ..renderer.gl import GLError
 from ..renderer.lighting import available, method_class
 from ..renderer.lighting.options import OptionError
 from ..renderer.tasks.aov_output import AOVS, DEBUG_AOVS
+from ..scene.lights import influence_range
 from ..scene.prims import LightPrim
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import render_from_stage_matrix
@@ -790,7 +791,16 @@ class PreviewSession:
                 ("flux [lm]", _fmt(lp.flux)),
                 ("position [m]", _fmt(lp.position)),
                 ("direction", _fmt(lp.direction)),
+                ("shadow", f"{'on' if lp.shadow_enable else 'off'} {lp.shadow_update}"),
             ]
+            if local:
+                _, exposure = self.engine.camera()
+                rng = (
+                    lp.range if lp.range_authored else influence_range(lp.peak_intensity, exposure)
+                )
+                rows.append(("range [m]", _fmt(float(rng))))
+            if lp.ies_asset:
+                rows.append(("IES", str(lp.ies_file or lp.ies_asset)))
         t = Usd.TimeCode(self.engine.scene_index.time)
         for a in prim.GetAttributes():
             if not a.HasAuthoredValue():

@@ -478,7 +478,11 @@ class PreviewApp:
             if s.save_edits(v) is None:
                 self.exit_code = 2
         elif k == "mark":
-            print(f"stb preview: mark {v} window=0x{self.window.x11_id:x}", flush=True)
+            print(
+                f"stb preview: mark {v} window=0x{self.window.x11_id:x} "
+                f"selected={s.selected or '-'}",
+                flush=True,
+            )
         elif k == "quit":
             self._quit = bool(v)
         if s.message and s.message != before:
