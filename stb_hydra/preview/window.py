@@ -567,7 +567,10 @@ class PreviewApp:
         while not glfw.window_should_close(self.window.win) and not self._quit:
             busy = self._script_busy() or opts.snapshot is not None
             now = time.perf_counter()
-            if busy or not self.session.converged or now - self._last_input < UI_ACTIVE_S:
+            idle = self.session.converged or not self.session.ok  # nothing to render
+            if self._sleep_until and idle:
+                glfw.wait_events_timeout(0.05)  # a scripted sleep: no need to spin
+            elif busy or not idle or now - self._last_input < UI_ACTIVE_S:
                 glfw.poll_events()
             else:
                 glfw.wait_events_timeout(0.25)
