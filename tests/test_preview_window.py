@@ -102,7 +102,12 @@ def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tupl
 
 
 def _finish(proc: subprocess.Popen, timeout: float = 90.0) -> tuple[int, str, str]:
-    out, err = proc.communicate(timeout=timeout)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+        raise AssertionError(f"the previewer did not exit within {timeout} s: {err}") from None
     return proc.returncode, out, err
 
 
@@ -269,3 +274,26 @@ def test_bad_script_exits_2_with_one_line(tmp_path, scene):
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "event 1" in lines[0] and "orbit" in lines[0], r.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["-o", "N=abc"], "stb option N: expected an integer"),
+        (["--view", "Nope"], "unknown OCIO view 'Nope'"),
+        (["--snapshot", "/nonexistent/dir/x.png"], "directory does not exist"),
+        (["--width", "3"], "bad viewport 3x540"),
+    ],
+)
+def test_bad_arguments_exit_2_with_one_line_before_any_window(tmp_path, scene, args, needle):
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}  # no window needed
+    r = subprocess.run(
+        [sys.executable, "-m", "stb_hydra.apps.cli", "preview", str(scene), *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
