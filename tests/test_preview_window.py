@@ -248,6 +248,29 @@ def test_missing_stage_shows_the_error_in_the_window(display, tmp_path):
     assert img.std() > 5.0  # the error panel is drawn, not a blank window
 
 
+def test_broken_stage_opens_once_fixed_on_disk(display, tmp_path):
+    """A stage that does not parse: the error is shown, the file is watched, and writing
+    a good stage to it opens it in the same window."""
+    path = tmp_path / "later.usda"
+    path.write_text("#usda 1.0\ndef Mesh (\n")
+    events = [
+        {"mark": "broken"},
+        {"sleep": 4},
+        {"wait": "converged"},
+        {"screenshot": "fixed.png"},
+        {"quit": True},
+    ]
+    args = [path, "--width", W, "--height", H, "--max-samples", 2, "--no-ui"]
+    proc = _start(display, [*args, "--lighting", "reference"], tmp_path, events)
+    _wait_mark(proc, "broken")
+    path.write_text(TWO_LIGHTS_USDA)
+    code, out, err = _finish(proc)
+    assert code == 0, err
+    assert f"stb preview: opened {path}" in out
+    assert "line 2, column 1" in err and len(err.strip().splitlines()) == 1
+    assert _png(tmp_path / "fixed.png").mean() > 10.0  # the stage, not the error
+
+
 def test_no_display_exits_2_with_one_line(tmp_path, scene):
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     r = subprocess.run(

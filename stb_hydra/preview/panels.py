@@ -38,7 +38,7 @@ def draw_error(message: str, size: tuple[int, int]) -> None:
     imgui.push_text_wrap_pos(0.0)
     imgui.text_colored(_RED, message)
     imgui.pop_text_wrap_pos()
-    imgui.text_colored(_GREY, "Fix the file and reopen it; Esc closes the window.")
+    imgui.text_colored(_GREY, "The file is watched: fixing it opens the stage. Esc closes.")
     imgui.end()
 
 

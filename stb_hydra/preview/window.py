@@ -198,19 +198,16 @@ class PreviewApp:
         assert settings.height
         self.window = PreviewWindow(settings.width, int(settings.height), opts.title)
         use_context(self.window.ctx)
-        self.session = PreviewSession(
-            scene,
-            settings,
-            ctx=self.window.ctx,
-            color=color,
-            max_samples=max_samples,
-            temporal=temporal,
-            time=time,
-        )
+        self._session_args = (scene, settings, color, max_samples, temporal, time)
+        self.session = self._open_session()
         self.exit_code = 0
+        self._retry: Any = None
+        self._retry_flag = False
         if self.session.error:
             self._report(self.session.error)
             self.exit_code = 2
+            if opts.watch and opts.snapshot is None:
+                self._watch_for_retry(scene)
         elif opts.watch:
             self.session.watch()
         from imgui_bundle import imgui
@@ -242,6 +239,65 @@ class PreviewApp:
         self.ui_ms = 0.0
         self._frame_times: deque[float] = deque(maxlen=30)
         self._install_callbacks()
+
+    def _open_session(self) -> PreviewSession:
+        scene, settings, color, max_samples, temporal, time_ = self._session_args
+        return PreviewSession(
+            scene,
+            settings,
+            ctx=self.window.ctx,
+            color=color,
+            max_samples=max_samples,
+            temporal=temporal,
+            time=time_,
+        )
+
+    def _watch_for_retry(self, scene: str) -> None:
+        """The stage could not be opened: watch its file and try again when it changes
+        (the window shows the error meanwhile)."""
+        import os
+
+        try:
+            from watchdog.events import FileSystemEvent, FileSystemEventHandler
+            from watchdog.observers import Observer
+        except ImportError:
+            return
+        target = os.path.realpath(scene)
+        folder = os.path.dirname(target)
+        if not os.path.isdir(folder):
+            return
+        app = self
+
+        class _Handler(FileSystemEventHandler):
+            def on_any_event(self, event: FileSystemEvent) -> None:
+                for p in (event.src_path, getattr(event, "dest_path", "")):
+                    if p and os.path.realpath(os.fsdecode(p)) == target:
+                        app._retry_flag = True
+
+        obs = Observer()
+        obs.schedule(_Handler(), folder, recursive=False)
+        obs.daemon = True
+        obs.start()
+        self._retry = obs
+
+    def _retry_open(self) -> None:
+        """The broken stage's file changed: open it again (once it settles)."""
+        if not self._retry_flag:
+            return
+        self._retry_flag = False
+        time.sleep(0.2)  # editors write in several steps
+        session = self._open_session()
+        if session.error:
+            self.session.error = session.error
+            return
+        self.session = session
+        self.exit_code = 0
+        print(f"stb preview: opened {session.scene}", flush=True)
+        if self._retry is not None:
+            self._retry.stop()
+            self._retry = None
+        if self.opts.watch:
+            session.watch()
 
     # -- output --
     def _report(self, msg: str, warning: bool = False) -> None:
@@ -552,6 +608,8 @@ class PreviewApp:
         try:
             return self._loop()
         finally:
+            if self._retry is not None:
+                self._retry.stop()
             self.session.release()
             try:
                 self.gui.shutdown()
@@ -574,6 +632,7 @@ class PreviewApp:
                 glfw.poll_events()
             else:
                 glfw.wait_events_timeout(0.25)
+            self._retry_open()
             self._run_script()
             self._apply_fly()
             rendered = self.session.step()
