@@ -245,6 +245,11 @@ def test_progressive_accumulates_to_max_samples_then_stops(scene, gl_ctx):
         assert s.step() and s.engine.settings.temporal == "taa" and s.samples == 1
         assert _converge(s) == 5  # still again: accumulate to the budget
         assert s.engine.settings.temporal == "accumulate"
+        s.moving_temporal = "off"  # --while-moving off: raw frames while moving
+        s.tumble(5.0, 0.0)
+        assert s.step() and s.engine.settings.temporal == "off"
+        _converge(s)
+        assert s.engine.settings.temporal == "accumulate" and s.engine.accumulate.count == 5
         s.set_temporal("off")
         _converge(s)
         assert s.engine.accumulate.count == 1  # off: every frame on its own

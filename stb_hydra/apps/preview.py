@@ -40,6 +40,13 @@ def add_parser(sub) -> None:
         help="auto (default): accumulate while still, taa while moving",
     )
     p.add_argument(
+        "--while-moving",
+        choices=("taa", "off"),
+        default="taa",
+        help="what --temporal auto runs while the camera or scene moves: taa (default) or "
+        "off (raw frames: noisier, faster where the taa pass is slow, e.g. llvmpipe)",
+    )
+    p.add_argument(
         "--max-samples",
         type=int,
         default=64,
@@ -141,6 +148,7 @@ def _main(args: argparse.Namespace) -> int:
             max_samples=args.max_samples,
             temporal=args.temporal,
             time=args.time,
+            moving=args.while_moving,
         )
     except WindowError as exc:
         return fail(str(exc))

@@ -23,13 +23,19 @@ from .window import PreviewApp, RunOptions
 
 
 def measure(
-    scene: str, width: int, height: int, frames: int, lighting: str, still: bool = False
+    scene: str,
+    width: int,
+    height: int,
+    frames: int,
+    lighting: str,
+    still: bool = False,
+    moving: str = "taa",
 ) -> dict[str, float | str]:
     """Median tick times (ms) with and without the panels, and the panels' own time.
     ``still``: no camera motion (accumulation, one new sample a frame) instead of a
     tumble every frame (taa)."""
     settings = RenderSettings(width=width, height=height, lighting=lighting)
-    app = PreviewApp(scene, settings, RunOptions(), max_samples=1_000_000)
+    app = PreviewApp(scene, settings, RunOptions(), max_samples=1_000_000, moving=moving)
     if app.session.error:
         raise SystemExit(f"stb preview bench: {app.session.error}")
     ctx = app.window.ctx
@@ -86,8 +92,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=60)
     ap.add_argument("--lighting", default="stb")
     ap.add_argument("--still", action="store_true", help="no camera motion (accumulate)")
+    ap.add_argument("--while-moving", choices=("taa", "off"), default="taa")
     a = ap.parse_args(argv)
-    print(json.dumps(measure(a.scene, a.width, a.height, a.frames, a.lighting, a.still)))
+    m = measure(a.scene, a.width, a.height, a.frames, a.lighting, a.still, a.while_moving)
+    print(json.dumps(m))
     return 0
 
 

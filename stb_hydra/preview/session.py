@@ -89,7 +89,10 @@ class PreviewSession:
         max_samples: int = DEFAULT_MAX_SAMPLES,
         temporal: str = "auto",
         time: float | None = None,
+        moving_temporal: str = "taa",
     ) -> None:
+        if moving_temporal not in ("taa", "off"):
+            raise ValueError(f"moving_temporal must be taa or off; got {moving_temporal!r}")
         if temporal not in TEMPORAL_MODES:
             raise ValueError(
                 f"temporal must be one of {', '.join(TEMPORAL_MODES)}; got {temporal!r}"
@@ -99,6 +102,9 @@ class PreviewSession:
         self.scene = str(scene)
         self.max_samples = int(max_samples)
         self.temporal = temporal
+        #: What ``auto`` runs while something moves: "taa" (default) or "off" (raw
+        #: frames: noisier, cheaper where the temporal pass is slow, e.g. llvmpipe).
+        self.moving_temporal = moving_temporal
         self.error: str | None = None
         self.message: str | None = None
         self.engine: Engine | None = None
@@ -302,7 +308,11 @@ class PreviewSession:
             or self.playing
             or e.scene_index.has_pending_updates
         )
-        want = ("taa" if moving else "accumulate") if self.temporal == "auto" else self.temporal
+        want = (
+            (self.moving_temporal if moving else "accumulate")
+            if self.temporal == "auto"
+            else self.temporal
+        )
         if not moving and not self._force and self._done(want):
             return False
         if want != e.settings.temporal:

@@ -191,14 +191,16 @@ class PreviewApp:
         max_samples: int = 64,
         temporal: str = "auto",
         time: float | None = None,
+        moving: str = "taa",
         err: Any = None,
     ) -> None:
         self.opts = opts
         self.err = err or sys.stderr
         assert settings.height
-        self.window = PreviewWindow(settings.width, int(settings.height), opts.title)
+        title = f"{opts.title} - {Path(scene).name}"
+        self.window = PreviewWindow(settings.width, int(settings.height), title)
         use_context(self.window.ctx)
-        self._session_args = (scene, settings, color, max_samples, temporal, time)
+        self._session_args = (scene, settings, color, max_samples, temporal, time, moving)
         self.session = self._open_session()
         self.exit_code = 0
         self._retry: Any = None
@@ -241,7 +243,7 @@ class PreviewApp:
         self._install_callbacks()
 
     def _open_session(self) -> PreviewSession:
-        scene, settings, color, max_samples, temporal, time_ = self._session_args
+        scene, settings, color, max_samples, temporal, time_, moving = self._session_args
         return PreviewSession(
             scene,
             settings,
@@ -250,6 +252,7 @@ class PreviewApp:
             max_samples=max_samples,
             temporal=temporal,
             time=time_,
+            moving_temporal=moving,
         )
 
     def _watch_for_retry(self, scene: str) -> None:
