@@ -72,7 +72,7 @@ def measure(
         "width": width,
         "height": height,
         "lighting": lighting,
-        "camera": "still (accumulate)" if still else "tumbling (taa)",
+        "camera": "still (accumulate)" if still else f"tumbling ({moving})",
         "temporal": app.session.hud.temporal,
         "frames": frames,
         "tick_ms_with_ui": round(with_ui, 2),
