@@ -524,3 +524,65 @@ def Xform "Inst2" (
         assert s.select("/Inst2/Part") and dict(s.properties("/Inst2/Part"))["type"] == "Cube"
     finally:
         s.release()
+
+
+@pytest.fixture
+def imgui_ctx():
+    """A Dear ImGui context without a window (panels are drawn, nothing displayed)."""
+    imgui = pytest.importorskip("imgui_bundle").imgui
+    ctx = imgui.create_context()
+    io = imgui.get_io()
+    io.set_ini_filename(None)
+    io.display_size = imgui.ImVec2(800, 600)
+    io.backend_flags |= imgui.BackendFlags_.renderer_has_textures
+    yield imgui
+    imgui.destroy_context(ctx)
+
+
+def _draw_panels(imgui, s, ps, tab, mouse=None, down=False):
+    from stb_hydra.preview import panels
+
+    io = imgui.get_io()
+    if mouse is not None:
+        io.add_mouse_pos_event(*mouse)
+        io.add_mouse_button_event(0, down)
+    io.delta_time = 1 / 60
+    imgui.new_frame()
+    panels.draw_hud(s, ps)
+    panels.draw_controls(s, ps, (800, 600))
+    imgui.set_next_window_pos(imgui.ImVec2(0, 0))
+    imgui.begin("tab", None, imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_move)
+    tab(s) if tab is not panels._prims_tab else tab(s, ps)
+    imgui.end()
+    imgui.render()
+
+
+@pytest.mark.gl
+def test_panels_draw_every_tab_and_a_click_toggles_a_light(scene, gl_ctx, imgui_ctx):
+    from stb_hydra.preview import panels
+
+    imgui = imgui_ctx
+    s = _session(scene, gl_ctx, max_samples=1)
+    try:
+        _converge(s)
+        ps = panels.PanelState()
+        for method in ("stb", "clustered"):
+            s.set_method(method)
+            s.select("/Lights/Left")
+            for tab in (panels._render_tab, panels._method_options, panels._lights_tab):
+                _draw_panels(imgui, s, ps, tab)
+            for search in ("", "light"):
+                ps.search = search
+                _draw_panels(imgui, s, ps, panels._prims_tab)
+            _draw_panels(imgui, s, ps, panels._time_tab)
+        # the light list's first widget is /Lights/Left's enable checkbox, at the
+        # window's padding: press and release on it
+        assert s.lights()[0]["path"] == "/Lights/Left" and s.lights()[0]["enabled"]
+        for down in (False, True, False):
+            _draw_panels(imgui, s, ps, panels._lights_tab, mouse=(16.0, 16.0), down=down)
+        layer = s.stage.GetSessionLayer().ExportToString()
+        assert "invisible" in layer  # the click authored visibility on the session layer
+        _converge(s)
+        assert not s.lights()[0]["enabled"] and s.lights()[1]["enabled"]
+    finally:
+        s.release()
