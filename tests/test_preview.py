@@ -245,6 +245,13 @@ def test_progressive_accumulates_to_max_samples_then_stops(scene, gl_ctx):
         assert s.step() and s.engine.settings.temporal == "taa" and s.samples == 1
         assert _converge(s) == 5  # still again: accumulate to the budget
         assert s.engine.settings.temporal == "accumulate"
+        s.moving_scale = 0.5  # --moving-scale 0.5: half resolution while moving
+        s.tumble(5.0, 0.0)
+        assert s.step() and s.engine.buffers.size == (W // 2, H // 2)
+        assert s.display_texture().size == (W // 2, H // 2) and s.size == (W, H)
+        _converge(s)
+        assert s.engine.buffers.size == (W, H)  # still: full resolution again
+        s.moving_scale = 1.0
         s.moving_temporal = "off"  # --while-moving off: raw frames while moving
         s.tumble(5.0, 0.0)
         assert s.step() and s.engine.settings.temporal == "off"
@@ -584,5 +591,29 @@ def test_panels_draw_every_tab_and_a_click_toggles_a_light(scene, gl_ctx, imgui_
         assert "invisible" in layer  # the click authored visibility on the session layer
         _converge(s)
         assert not s.lights()[0]["enabled"] and s.lights()[1]["enabled"]
+    finally:
+        s.release()
+
+
+@pytest.mark.gl
+def test_free_camera_keeps_the_stage_cameras_exposure(tmp_path, gl_ctx):
+    """Leaving a stage camera with exposure -1 for the free camera (a zero-pixel tumble:
+    the same view) shows the same image, not one twice as bright."""
+    p = tmp_path / "exposed.usda"
+    p.write_text(
+        TWO_LIGHTS_USDA.replace(
+            "float focalLength = 18", "float focalLength = 18\n    float exposure = -1", 1
+        )
+    )
+    s = _session(p, gl_ctx, "reference", max_samples=1)
+    try:
+        _converge(s)
+        a = _display(s)
+        s.tumble(0.0, 0.0)
+        assert s.camera_path is None
+        _converge(s)
+        b = _display(s)
+        assert abs(b.mean() - a.mean()) < 0.02 * a.mean()
+        assert np.abs(b - a).mean() < 1.0
     finally:
         s.release()

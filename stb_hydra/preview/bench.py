@@ -30,12 +30,15 @@ def measure(
     lighting: str,
     still: bool = False,
     moving: str = "taa",
+    scale: float = 1.0,
 ) -> dict[str, float | str]:
     """Median tick times (ms) with and without the panels, and the panels' own time.
     ``still``: no camera motion (accumulation, one new sample a frame) instead of a
     tumble every frame (taa)."""
     settings = RenderSettings(width=width, height=height, lighting=lighting)
-    app = PreviewApp(scene, settings, RunOptions(), max_samples=1_000_000, moving=moving)
+    app = PreviewApp(
+        scene, settings, RunOptions(), max_samples=1_000_000, moving=moving, scale=scale
+    )
     if app.session.error:
         raise SystemExit(f"stb preview bench: {app.session.error}")
     ctx = app.window.ctx
@@ -72,7 +75,7 @@ def measure(
         "width": width,
         "height": height,
         "lighting": lighting,
-        "camera": "still (accumulate)" if still else f"tumbling ({moving})",
+        "camera": "still (accumulate)" if still else f"tumbling ({moving}, scale {scale:g})",
         "temporal": app.session.hud.temporal,
         "frames": frames,
         "tick_ms_with_ui": round(with_ui, 2),
@@ -93,8 +96,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lighting", default="stb")
     ap.add_argument("--still", action="store_true", help="no camera motion (accumulate)")
     ap.add_argument("--while-moving", choices=("taa", "off"), default="taa")
+    ap.add_argument("--moving-scale", type=float, default=1.0)
     a = ap.parse_args(argv)
-    m = measure(a.scene, a.width, a.height, a.frames, a.lighting, a.still, a.while_moving)
+    m = measure(
+        a.scene, a.width, a.height, a.frames, a.lighting, a.still, a.while_moving, a.moving_scale
+    )
     print(json.dumps(m))
     return 0
 

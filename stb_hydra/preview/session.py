@@ -90,7 +90,10 @@ class PreviewSession:
         temporal: str = "auto",
         time: float | None = None,
         moving_temporal: str = "taa",
+        moving_scale: float = 1.0,
     ) -> None:
+        if not 0.1 <= moving_scale <= 1.0:
+            raise ValueError(f"moving_scale must be in [0.1, 1]; got {moving_scale}")
         if moving_temporal not in ("taa", "off"):
             raise ValueError(f"moving_temporal must be taa or off; got {moving_temporal!r}")
         if temporal not in TEMPORAL_MODES:
@@ -105,6 +108,10 @@ class PreviewSession:
         #: What ``auto`` runs while something moves: "taa" (default) or "off" (raw
         #: frames: noisier, cheaper where the temporal pass is slow, e.g. llvmpipe).
         self.moving_temporal = moving_temporal
+        #: Render scale while something moves (1: full resolution; 0.5: a quarter of
+        #: the pixels, upscaled by the window) -- frame rate while navigating.
+        self.moving_scale = float(moving_scale)
+        self._viewport = (int(settings.width), int(settings.height or 1))
         self.error: str | None = None
         self.message: str | None = None
         self.engine: Engine | None = None
@@ -141,6 +148,7 @@ class PreviewSession:
             self.error = _one_line(exc)
             return
         e = self.engine
+        self._viewport = (int(e.settings.width), int(e.settings.height or 1))
         # The window renders one frame per tick as one long sequence: the engine's
         # accumulation is reset here, on every change, not after each frame.
         e._in_sequence = True
@@ -235,9 +243,9 @@ class PreviewSession:
 
     @property
     def size(self) -> tuple[int, int]:
-        assert self.engine is not None
-        s = self.engine.settings
-        return s.width, int(s.height or 1)
+        """The viewport (pixels); the engine renders at ``moving_scale`` of it while
+        something moves."""
+        return self._viewport
 
     @property
     def aspect(self) -> float:
@@ -318,6 +326,7 @@ class PreviewSession:
         if want != e.settings.temporal:
             self._set_engine_temporal(want)
             self.hud.samples = 0
+        self._set_render_size(self.moving_scale if moving else 1.0)
         if moving or want == "off":
             e.accumulate.reset()
         if moving:
@@ -402,8 +411,17 @@ class PreviewSession:
         if not self.ok or width < 1 or height < 1:
             return
         assert self.engine is not None
-        self.engine.settings.width, self.engine.settings.height = int(width), int(height)
+        self._viewport = (int(width), int(height))
+        self._set_render_size(1.0)
         self._camera_dirty = True
+
+    def _set_render_size(self, scale: float) -> None:
+        """The engine's image size: the viewport times ``scale`` (16 px at least)."""
+        assert self.engine is not None
+        w, h = self._viewport
+        st = self.engine.settings
+        st.width = max(16, round(w * scale)) if scale != 1.0 else w
+        st.height = max(16, round(h * scale)) if scale != 1.0 else h
 
     # -- camera --
     def _pivot_distance(self, cam: Any) -> float:
@@ -451,8 +469,9 @@ class PreviewSession:
         assert self.engine is not None
         if self.camera_path is None:
             return
-        cam, _ = self.engine.camera()
+        cam, exposure = self.engine.camera()
         self.orbit = OrbitCamera.from_prim(cam, self._pivot_distance(cam), self._scene_radius)
+        self.engine.free_camera_exposure = exposure  # same brightness (and light ranges)
         self.camera_path = None
 
     def _gesture(self) -> OrbitCamera:

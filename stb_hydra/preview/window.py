@@ -151,6 +151,10 @@ class PreviewWindow:
             return
         # Own sampler object on unit 0: the engine's passes may leave one bound there.
         tex.use(0)
+        # nearest when 1:1 (the window shows the display image's exact codes), linear
+        # when a reduced-resolution frame (--moving-scale) is stretched over the window
+        f = moderngl.NEAREST if tuple(tex.size) == (w, h) else moderngl.LINEAR
+        self.sampler.filter = (f, f)
         self.sampler.use(0)
         cast(moderngl.Uniform, self.blit["img"]).value = 0
         self.vao.render(moderngl.TRIANGLES, vertices=3)
@@ -192,6 +196,7 @@ class PreviewApp:
         temporal: str = "auto",
         time: float | None = None,
         moving: str = "taa",
+        scale: float = 1.0,
         err: Any = None,
     ) -> None:
         self.opts = opts
@@ -200,7 +205,7 @@ class PreviewApp:
         title = f"{opts.title} - {Path(scene).name}"
         self.window = PreviewWindow(settings.width, int(settings.height), title)
         use_context(self.window.ctx)
-        self._session_args = (scene, settings, color, max_samples, temporal, time, moving)
+        self._session_args = (scene, settings, color, max_samples, temporal, time, moving, scale)
         self.session = self._open_session()
         self.exit_code = 0
         self._retry: Any = None
@@ -243,7 +248,7 @@ class PreviewApp:
         self._install_callbacks()
 
     def _open_session(self) -> PreviewSession:
-        scene, settings, color, max_samples, temporal, time_, moving = self._session_args
+        scene, settings, color, max_samples, temporal, time_, moving, scale = self._session_args
         return PreviewSession(
             scene,
             settings,
@@ -253,6 +258,7 @@ class PreviewApp:
             temporal=temporal,
             time=time_,
             moving_temporal=moving,
+            moving_scale=scale,
         )
 
     def _watch_for_retry(self, scene: str) -> None:
