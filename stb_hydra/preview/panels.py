@@ -60,6 +60,11 @@ def draw_hud(s: PreviewSession, ps: PanelState) -> None:
         f"samples {h.samples}/{s.max_samples}  lights in view {h.lights_in_view}  "
         f"shadows pending {h.shadow_pending}  atlas {100.0 * h.atlas_occupancy:4.1f} %"
     )
+    if s.engine is not None:
+        st = s.engine.settings
+        t = s.time
+        when = f"  time {t:g}{' (playing)' if s.playing else ''}" if t is not None else ""
+        imgui.text(f"render {st.width}x{st.height}  view {s.view}{when}")
     if s.message:
         imgui.text_colored(_RED, s.message)
     if imgui.tree_node("passes (ms)"):
