@@ -15,7 +15,7 @@ DEMO_FLAGS ?= --lighting stb --accumulate 16
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[dev,reference,ray]'
+	$(PY) -m pip install -q -e '.[dev,reference,ray,preview]'
 	@touch $(STAMP)
 
 sysdeps:

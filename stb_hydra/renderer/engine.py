@@ -85,6 +85,8 @@ class Engine:
         self.frame_index = 0
         self.camera_path: str | None = None
         self._free_camera: prims.CameraPrim | None = None
+        #: Linear exposure of the free camera (a previewer keeps a stage camera's).
+        self.free_camera_exposure = 1.0
         self.warnings: list[str] = []
         self._seen_warnings: set[str] = set()
         self._in_sequence = False
@@ -240,7 +242,7 @@ class Engine:
                 raise RenderError(f"camera '{self.camera_path}' disappeared from the stage")
             return sp.camera, sp.exposure_scale
         assert self._free_camera is not None  # _choose_camera made one (no camera_path)
-        return self._free_camera, 1.0
+        return self._free_camera, self.free_camera_exposure
 
     def is_empty(self) -> bool:
         return not self.delegate.batches and not self.delegate.lights
