@@ -151,7 +151,7 @@ class PreviewSession:
         self._viewport = (int(e.settings.width), int(e.settings.height or 1))
         # The window renders one frame per tick as one long sequence: the engine's
         # accumulation is reset here, on every change, not after each frame.
-        e._in_sequence = True
+        e.continuous(True)
         self.camera_path = e.camera_path
         lo, hi = e.delegate.scene_bounds
         self._scene_radius = max(0.5 * float(np.linalg.norm(np.asarray(hi) - lo)), 1.0)
@@ -328,7 +328,7 @@ class PreviewSession:
             self.hud.samples = 0
         self._set_render_size(self.moving_scale if moving else 1.0)
         if moving or want == "off":
-            e.accumulate.reset()
+            e.reset_accumulation()
         if moving:
             self.hud.samples = 0
         if self.playing:
@@ -358,7 +358,7 @@ class PreviewSession:
         if pending and e.settings.temporal == "accumulate":
             # Static shadow maps still arriving (the real-time budget): samples
             # without them would stay in the average, so the count restarts.
-            e.accumulate.reset()
+            e.reset_accumulation()
             self.hud.samples = 0
         else:
             self.hud.samples += 1
@@ -440,8 +440,7 @@ class PreviewSession:
             e.camera_path = self.camera_path
         else:
             assert self.orbit is not None
-            e.camera_path = None
-            e._free_camera = self.orbit.to_prim(self.aspect)
+            e.set_free_camera(self.orbit.to_prim(self.aspect))
 
     def cameras(self) -> list[str]:
         """The stage's cameras."""

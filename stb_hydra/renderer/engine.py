@@ -235,6 +235,24 @@ class Engine:
             aspect = self.settings.width / self.settings.height if self.settings.height else 16 / 9
             self._free_camera = framing_camera(lo, hi, aspect)
 
+    def set_free_camera(self, camera: prims.CameraPrim, exposure: float | None = None) -> None:
+        """View through ``camera`` (not a stage prim: a previewer's free camera) from the
+        next frame on; ``exposure`` (linear) keeps a stage camera's brightness."""
+        self.camera_path = None
+        self._free_camera = camera
+        if exposure is not None:
+            self.free_camera_exposure = float(exposure)
+
+    def continuous(self, on: bool = True) -> None:
+        """Frames rendered with :meth:`render_frame` form one open-ended sequence (a
+        previewer's frames): the still-camera running average is then reset only by
+        :meth:`reset_accumulation`, not after each frame."""
+        self._in_sequence = bool(on)
+
+    def reset_accumulation(self) -> None:
+        """Start the still-camera running average again (the view or scene changed)."""
+        self.accumulate.reset()
+
     def camera(self) -> tuple[prims.CameraPrim, float]:
         if self.camera_path is not None:
             sp = self.delegate.cameras.get(self.camera_path)
