@@ -104,6 +104,8 @@ class Engine:
         )
         ps.aov_output.requested = self._requested_aovs
         ps.aov_output.on_change = self._invalidate_graph
+        if ps.lightmap is not None:
+            ps.lightmap.attach(self.stage)  # baked static light (tasks/lightmap.py)
         self._graph = None
         return ps
 

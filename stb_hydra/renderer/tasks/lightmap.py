@@ -1,0 +1,234 @@
+"""Baked static light (``stb bake``, docs/BAKE.md): lightmaps added to ``g_emission``.
+
+Meshes that carry ``primvars:stb:lightmap:uv`` (faceVarying) and
+``stb:lightmap:file`` (an EXR written by ``stb bake``) are drawn again after the
+G-buffer with their lightmap UVs; where a fragment is the visible front-facing
+surface of its pixel (its linear view depth matches ``g_depth``), the baked
+radiance is added to the pixel's emission:
+
+    diffuse / PI * E_baked  +  specular BRDF towards the dominant direction * E_spec
+
+(``shaders/bake_apply.frag``). Every lighting method adds ``g_emission`` to its
+result, so all of them see the baked lights; the lights themselves (``stb:baked``)
+leave the light set (``light_cull``) and hence the shadow atlas. The pass joins the
+graph only when the stage has lightmaps (``io()`` is empty otherwise, so it is culled).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, cast
+
+import moderngl
+import numpy as np
+from pxr import Usd, UsdGeom
+
+from ..frame import FrameContext
+from ..gl import shader_library
+from ..graph import Imported, Rec, Resource, Tex
+from ..records import FrameBlock
+from .base import Pass
+
+if TYPE_CHECKING:
+    from ..gl_delegate import GLRenderDelegate
+
+#: The attributes ``stb bake`` writes on a baked mesh (stb_hydra/bake/baker.py).
+UV_PRIMVAR = "stb:lightmap:uv"
+FILE_ATTR = "stb:lightmap:file"
+#: EXR channel groups of a lightmap, in texture order.
+LIGHTMAP_CHANNELS = (
+    ("R", "G", "B"),
+    ("specular.R", "specular.G", "specular.B"),
+    ("direction.X", "direction.Y", "direction.Z"),
+)
+#: Relative view-depth difference under which a lightmapped fragment is the surface
+#: the G-buffer kept (same triangles, same transform: float rounding is ~1e-6).
+DEPTH_MATCH_REL = 1e-3
+
+
+@dataclass
+class _Lightmapped:
+    path: str
+    vbo: moderngl.Buffer
+    vao: moderngl.VertexArray | None
+    textures: list[moderngl.Texture]
+    vertices: int
+
+
+def stage_has_lightmaps(stage: Usd.Stage) -> bool:
+    """Whether any prim of ``stage`` has ``stb:lightmap:file`` authored."""
+    for prim in stage.Traverse():
+        a = prim.GetAttribute(FILE_ATTR)
+        if a and a.HasAuthoredValue():
+            return True
+    return False
+
+
+def read_lightmap(path: str) -> list[np.ndarray]:
+    """The three (h, w, 3) float32 planes of a lightmap EXR, row 0 = v 0 (GL order).
+    Raises OSError naming the problem."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise OSError(oiio.geterror() or "cannot open")
+    try:
+        names = list(inp.spec().channelnames)
+        px = inp.read_image(format="float")
+    finally:
+        inp.close()
+    if px is None:
+        raise OSError("cannot read pixels")
+    a = np.asarray(px, dtype=np.float32)
+    if a.ndim == 2:
+        a = a[..., None]
+    out = []
+    for group in LIGHTMAP_CHANNELS:
+        if not all(c in names for c in group):
+            raise OSError(f"missing channels {', '.join(group)}")
+        plane = np.stack([a[..., names.index(c)] for c in group], axis=-1)[::-1]
+        out.append(np.ascontiguousarray(np.nan_to_num(plane, nan=0.0, posinf=0.0)))
+    return out
+
+
+class LightmapTask(Pass):
+    name = "lightmap"
+    reads = (
+        Imported("meshes"),
+        Rec(FrameBlock),
+        Tex("g_depth", "r32f"),
+        Tex("g_normal", "rg16f"),
+        Tex("g_base_rough", "rgba16f"),
+        Tex("g_f0_metal", "rgba16f"),
+        Tex("g_emission", "rgba16f"),
+    )
+    writes = (Tex("g_emission", "rgba16f"),)
+
+    def __init__(self, delegate: GLRenderDelegate) -> None:
+        super().__init__(delegate)
+        self.stage: Usd.Stage | None = None
+        self._has: bool | None = None
+        self._items: list[_Lightmapped] | None = None
+        #: Lightmap texels resident on the GPU and their bytes (3 x RGB16F per texel).
+        self.texels = 0
+        self.gpu_bytes = 0
+
+    def attach(self, stage: Usd.Stage) -> None:
+        """The stage whose baked meshes this pass draws (set by the engine)."""
+        self.stage = stage
+        self._has = None
+
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
+        if self._has is None:
+            self._has = self.stage is not None and stage_has_lightmaps(self.stage)
+        return (self.reads, self.writes) if self._has else ((), ())
+
+    def _load(self, frame: FrameContext) -> list[_Lightmapped]:
+        assert self.stage is not None
+        ctx = frame.ctx
+        prog = shader_library(ctx).program("bake_apply.vert", "bake_apply.frag")
+        items: list[_Lightmapped] = []
+        for prim in self.stage.Traverse():
+            fa = prim.GetAttribute(FILE_ATTR)
+            if not fa or not fa.HasAuthoredValue() or not prim.IsA(UsdGeom.Mesh):
+                continue
+            path = str(prim.GetPath())
+            try:
+                items.append(self._load_one(ctx, prog, prim, fa))
+            except (OSError, ValueError) as exc:
+                frame.warnings.append(
+                    f"mesh <{path}>: lightmap not used ({exc}); its baked lights are missing"
+                )
+        return items
+
+    def _load_one(
+        self,
+        ctx: moderngl.Context,
+        prog: moderngl.Program,
+        prim: Usd.Prim,
+        fa: Usd.Attribute,
+    ) -> _Lightmapped:
+        from ...scene.geometry import _read_topology, _Topology
+
+        path = str(prim.GetPath())
+        rp = self.delegate.meshes.get(path)
+        mesh = rp.mesh if rp is not None else None
+        if mesh is None or not mesh.visible or mesh.dynamic:
+            raise ValueError("the mesh is not drawn as static geometry")
+        topo = _read_topology(prim, UsdGeom.Mesh(prim), Usd.TimeCode.Default())
+        if not isinstance(topo, _Topology):
+            raise ValueError("no usable topology")
+        pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(UV_PRIMVAR)
+        uv = pv.Get() if pv else None
+        if uv is None or pv.GetInterpolation() != UsdGeom.Tokens.faceVarying:
+            raise ValueError(f"primvars:{UV_PRIMVAR} is not authored faceVarying")
+        uv_fv = np.asarray(uv, dtype=np.float32).reshape(-1, 2)
+        if len(uv_fv) != len(topo.fvi):
+            raise ValueError(f"{len(uv_fv)} lightmap UVs for {len(topo.fvi)} face-vertices")
+        asset = fa.Get()
+        file = getattr(asset, "resolvedPath", "") or ""
+        if not file or not Path(file).is_file():
+            raise OSError(f"file '{getattr(asset, 'path', asset)}' not found")
+        planes = read_lightmap(file)
+        xf = np.asarray(mesh.transform, dtype=np.float64)
+        pts = np.c_[topo.points.astype(np.float64), np.ones(len(topo.points))] @ xf
+        corners = topo.corners.reshape(-1)
+        verts = np.concatenate(
+            [pts[topo.fvi[corners], :3].astype(np.float32), uv_fv[corners]], axis=1
+        )
+        if not np.all(np.isfinite(verts)):
+            raise ValueError("non-finite positions or lightmap UVs")
+        vbo = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
+        texs = []
+        for plane in planes:
+            h, w, _ = plane.shape
+            t = ctx.texture((w, h), 3, np.ascontiguousarray(plane, dtype=np.float16).tobytes(), dtype="f2")
+            t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            t.repeat_x = t.repeat_y = False
+            texs.append(t)
+            self.texels += w * h
+            self.gpu_bytes += w * h * 6
+        vao = ctx.vertex_array(prog, [(vbo, "3f 2f", "in_pos", "in_uv")])
+        return _Lightmapped(path, vbo, vao, texs, len(verts))
+
+    def execute(self, frame: FrameContext) -> None:
+        if self._items is None:
+            self._items = self._load(frame)
+        if not self._items:
+            return
+        ctx = frame.ctx
+        bufs = frame.buffers
+        prog = shader_library(ctx).program("bake_apply.vert", "bake_apply.frag")
+        cast(moderngl.Uniform, prog["u_depth_match"]).value = DEPTH_MATCH_REL
+        unit = 0
+        for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal"):
+            bufs.textures[name].use(unit)
+            cast(moderngl.Uniform, prog[name]).value = unit
+            unit += 1
+        fbo = bufs.framebuffer("fb_lightmap", ["g_emission"])
+        fbo.use()
+        ctx.viewport = (0, 0, *bufs.size)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        try:
+            for it in self._items:
+                for k, t in enumerate(it.textures):
+                    t.use(unit + k)
+                    cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
+                assert it.vao is not None
+                it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
+        finally:
+            ctx.disable(moderngl.BLEND)
+            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+
+    def release(self) -> None:
+        for it in self._items or []:
+            if it.vao is not None:
+                it.vao.release()
+            it.vbo.release()
+            for t in it.textures:
+                t.release()
+        self._items = None
+
