@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-VERBS = ("render", "inspect", "bench", "validate", "tradeoff")
+VERBS = ("render", "inspect", "bench", "validate", "tradeoff", "bake")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -42,17 +42,30 @@ DENSITY_ATTR = "stb:lightmap:texelDensity"
 BAKED_ATTR = "stb:baked"
 #: customLayerData key of the bake record.
 LAYER_KEY = "stb:bake"
-#: EXR channels of a lightmap (see BakedMap).
+#: EXR channels of a lightmap, plane by plane (see BakedMap; the runtime reads them
+#: by name: renderer/tasks/lightmap.py LIGHTMAP_CHANNELS).
 CHANNELS = (
     "R",
     "G",
     "B",
-    "specular.R",
-    "specular.G",
-    "specular.B",
-    "direction.X",
-    "direction.Y",
-    "direction.Z",
+    "specTop.R",
+    "specTop.G",
+    "specTop.B",
+    "dirTop.X",
+    "dirTop.Y",
+    "dirTop.Z",
+    "spec2nd.R",
+    "spec2nd.G",
+    "spec2nd.B",
+    "dir2nd.X",
+    "dir2nd.Y",
+    "dir2nd.Z",
+    "specRest.R",
+    "specRest.G",
+    "specRest.B",
+    "dirRest.X",
+    "dirRest.Y",
+    "dirRest.Z",
 )
 
 
@@ -65,7 +78,7 @@ class BakeReport:
     meshes: list[str] = field(default_factory=list)
     skipped: dict[str, str] = field(default_factory=dict)  # mesh path -> reason
     texels: int = 0
-    #: GPU memory of the runtime lightmaps (3 x RGBA16F per texel), bytes.
+    #: GPU memory of the runtime lightmaps (7 x RGB16F per texel), bytes.
     gpu_bytes: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
     cached: int = 0
@@ -290,7 +303,7 @@ def _write_outputs(
         if bm is None:
             continue
         exr = lm_dir / f"{_safe_name(lay.path)}.exr"
-        pix = np.concatenate([bm.diffuse, bm.specular, bm.direction], axis=-1)[::-1]
+        pix = np.concatenate(bm.planes(), axis=-1)[::-1]
         write_image(
             exr,
             np.ascontiguousarray(pix),
@@ -303,7 +316,7 @@ def _write_outputs(
         rep.texels += w * h
         baked_meshes.append(lay.path)
     rep.meshes = baked_meshes
-    rep.gpu_bytes = rep.texels * 3 * 8
+    rep.gpu_bytes = rep.texels * 7 * 6
     fps: dict[str, str] = {}
     if baked_meshes:
         for path in lights:

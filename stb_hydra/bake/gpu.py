@@ -43,15 +43,33 @@ from .unwrap import MeshLayout
 
 @dataclass
 class BakedMap:
-    """One mesh's lightmap, (h, w, 3) float32 each, row 0 = v = 0 (GL order):
-    ``diffuse`` irradiance (lux, diffuse multipliers applied), ``specular``
-    illuminance facing the lights (lux, specular multipliers), ``direction`` unit
-    dominant light direction (world), ``coverage`` (h, w) in [0, 1]."""
+    """One mesh's lightmap planes, (h, w, 3) float32 each, row 0 = v = 0 (GL order):
+    ``diffuse`` irradiance (lux, diffuse multipliers applied); ``spec_top`` the
+    strongest light's irradiance (lux, specular multipliers) and ``dir_top`` its unit
+    direction (world); ``spec_2nd`` / ``dir_2nd`` the second strongest's;
+    ``spec_rest`` / ``dir_rest`` the same for the other lights
+    together (their mean direction, weighted by irradiance; length <= 1: shorter =
+    spread). ``coverage`` (h, w) in [0, 1]."""
 
     diffuse: np.ndarray
-    specular: np.ndarray
-    direction: np.ndarray
+    spec_top: np.ndarray
+    dir_top: np.ndarray
+    spec_2nd: np.ndarray
+    dir_2nd: np.ndarray
+    spec_rest: np.ndarray
+    dir_rest: np.ndarray
     coverage: np.ndarray
+
+    def planes(self) -> list[np.ndarray]:
+        return [
+            self.diffuse,
+            self.spec_top,
+            self.dir_top,
+            self.spec_2nd,
+            self.dir_2nd,
+            self.spec_rest,
+            self.dir_rest,
+        ]
 
 
 class StaticLightCull(LightCullTask):
@@ -119,7 +137,7 @@ class LightmapBakePass(Pass):
         size = (w * ss, h * ss)
         pos = ctx.texture(size, 4, dtype="f4")
         nrm = ctx.texture(size, 4, dtype="f4")
-        outs = [ctx.texture(size, 4, dtype="f4") for _ in range(3)]
+        outs = [ctx.texture(size, 4, dtype="f4") for _ in range(7)]
         for t in (pos, nrm, *outs):
             t.filter = (moderngl.NEAREST, moderngl.NEAREST)
         fbo_g = ctx.framebuffer([pos, nrm])
@@ -159,7 +177,7 @@ class LightmapBakePass(Pass):
         finally:
             for o in (vao_t, vao_e, vbo, ibo, fbo_g, fbo_l, pos, nrm, *outs):
                 o.release()
-        return _resolve(arrs[0][..., :3], arrs[1][..., :3], arrs[2][..., :3], cov, ss)
+        return _resolve(arrs, cov, ss)
 
 
 def _read(tex: moderngl.Texture, size: tuple[int, int]) -> np.ndarray:
@@ -172,36 +190,39 @@ def _box(a: np.ndarray, ss: int) -> np.ndarray:
     return a.reshape(h, ss, w, ss, *a.shape[2:]).sum(axis=(1, 3))
 
 
-def _resolve(
-    diff: np.ndarray, spec: np.ndarray, dirs: np.ndarray, cov: np.ndarray, ss: int
-) -> BakedMap:
-    """Supersamples -> texels (coverage-weighted mean), then dilation into empty texels."""
+def _resolve(arrs: list[np.ndarray], cov: np.ndarray, ss: int) -> BakedMap:
+    """Supersamples -> texels (coverage-weighted mean; directions weighted by their
+    irradiance), then dilation into empty texels (seams)."""
     c = (cov > 0).astype(np.float32)
     n = _box(c, ss)
     safe = np.maximum(n, 1.0)[..., None]
-    d = _box(diff * c[..., None], ss) / safe
-    s = _box(spec * c[..., None], ss) / safe
-    v = _box(dirs * c[..., None], ss)
+    planes = []
+    for k in range(7):
+        if k in (2, 4, 6):  # directions: irradiance-weighted means
+            w = _box(arrs[k][..., 3] * c, ss)[..., None]
+            v = _box(arrs[k][..., :3] * c[..., None], ss) / np.maximum(w, 1e-30)
+            planes.append(np.where(w > 0, v, 0.0))
+        else:
+            planes.append(_box(arrs[k][..., :3] * c[..., None], ss) / safe)
     covered = n > 0
     for _ in range(limits.BAKE_DILATE_TEXELS):
-        d, s, v, covered = _dilate(d, s, v, covered)
-    ln = np.linalg.norm(v, axis=-1, keepdims=True)
-    v = np.where(ln > 0, v / np.maximum(ln, 1e-30), 0.0)
-    return BakedMap(
-        d.astype(np.float32),
-        s.astype(np.float32),
-        v.astype(np.float32),
-        (n / float(ss * ss)).astype(np.float32),
-    )
+        planes, covered = _dilate(planes, covered)
+    for k in (2, 4, 6):
+        ln = np.linalg.norm(planes[k], axis=-1, keepdims=True)
+        # one light: unit; the rest: a mean direction, length <= 1
+        big = ln > 0 if k != 6 else ln > 1.0
+        planes[k] = np.where(big, planes[k] / np.maximum(ln, 1e-30), planes[k])
+    f32 = np.float32
+    return BakedMap(*(p.astype(f32) for p in planes), (n / float(ss * ss)).astype(f32))
 
 
 def _dilate(
-    d: np.ndarray, s: np.ndarray, v: np.ndarray, covered: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    planes: list[np.ndarray], covered: np.ndarray
+) -> tuple[list[np.ndarray], np.ndarray]:
     """Empty texels next to covered ones get the mean of their covered 8-neighbours."""
     h, w = covered.shape
     pad = np.pad(covered, 1).astype(np.float32)
-    acc = [np.zeros_like(d), np.zeros_like(s), np.zeros_like(v)]
+    acc = [np.zeros_like(p) for p in planes]
     cnt = np.zeros((h, w), np.float32)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
@@ -209,13 +230,13 @@ def _dilate(
                 continue
             m = pad[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
             cnt += m
-            for a, src in zip(acc, (d, s, v)):
+            for a, src in zip(acc, planes):
                 sh = np.pad(src, ((1, 1), (1, 1), (0, 0)))[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
                 a += sh * m[..., None]
     grow = (~covered) & (cnt > 0)
     k = np.maximum(cnt, 1.0)[..., None]
-    out = [np.where(grow[..., None], a / k, src) for a, src in zip(acc, (d, s, v))]
-    return out[0], out[1], out[2], covered | grow
+    out = [np.where(grow[..., None], a / k, src) for a, src in zip(acc, planes)]
+    return out, covered | grow
 
 
 def run_bake_frame(

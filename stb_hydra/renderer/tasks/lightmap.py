@@ -6,7 +6,8 @@ G-buffer with their lightmap UVs; where a fragment is the visible front-facing
 surface of its pixel (its linear view depth matches ``g_depth``), the baked
 radiance is added to the pixel's emission:
 
-    diffuse / PI * E_baked  +  specular BRDF towards the dominant direction * E_spec
+    diffuse / PI * E_baked  +  sum over (the 2 strongest lights, the others' mean direction)
+                               of the specular BRDF towards it * its baked irradiance
 
 (``shaders/bake_apply.frag``). Every lighting method adds ``g_emission`` to its
 result, so all of them see the baked lights; the lights themselves (``stb:baked``)
@@ -24,8 +25,12 @@ import moderngl
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from ...scene.prims import CONE_CUTOFF_TEST_RAD
 from ..frame import FrameContext
+from ..fullscreen import fullscreen_vao
 from ..gl import shader_library
+from ..light_buffer import cull_lights, pack_lights
+from ..shader_constants import SSBO_LIGHTS
 from ..graph import Imported, Rec, Resource, Tex
 from ..records import FrameBlock
 from .base import Pass
@@ -39,12 +44,20 @@ FILE_ATTR = "stb:lightmap:file"
 #: EXR channel groups of a lightmap, in texture order.
 LIGHTMAP_CHANNELS = (
     ("R", "G", "B"),
-    ("specular.R", "specular.G", "specular.B"),
-    ("direction.X", "direction.Y", "direction.Z"),
+    ("specTop.R", "specTop.G", "specTop.B"),
+    ("dirTop.X", "dirTop.Y", "dirTop.Z"),
+    ("spec2nd.R", "spec2nd.G", "spec2nd.B"),
+    ("dir2nd.X", "dir2nd.Y", "dir2nd.Z"),
+    ("specRest.R", "specRest.G", "specRest.B"),
+    ("dirRest.X", "dirRest.Y", "dirRest.Z"),
 )
 #: Relative view-depth difference under which a lightmapped fragment is the surface
 #: the G-buffer kept (same triangles, same transform: float rounding is ~1e-6).
 DEPTH_MATCH_REL = 1e-3
+#: Smallest |cos| between a lightmapped fragment's facet and the G-buffer normal: where
+#: two surfaces meet both match the depth; only the one the pixel shows agrees (0.5 =
+#: 60 degrees, wider than the facet/shading-normal gap of a coarse cylinder).
+FACET_MATCH_COS = 0.5
 
 
 @dataclass
@@ -66,7 +79,7 @@ def stage_has_lightmaps(stage: Usd.Stage) -> bool:
 
 
 def read_lightmap(path: str) -> list[np.ndarray]:
-    """The three (h, w, 3) float32 planes of a lightmap EXR, row 0 = v 0 (GL order).
+    """The seven (h, w, 3) float32 planes of a lightmap EXR, row 0 = v 0 (GL order).
     Raises OSError naming the problem."""
     import OpenImageIO as oiio
 
@@ -103,16 +116,20 @@ class LightmapTask(Pass):
         Tex("g_f0_metal", "rgba16f"),
         Tex("g_emission", "rgba16f"),
     )
-    writes = (Tex("g_emission", "rgba16f"),)
+    writes = (Tex("g_emission", "rgba16f"), Tex("lightmap_mask", "r8"))
 
     def __init__(self, delegate: GLRenderDelegate) -> None:
         super().__init__(delegate)
         self.stage: Usd.Stage | None = None
         self._has: bool | None = None
         self._items: list[_Lightmapped] | None = None
-        #: Lightmap texels resident on the GPU and their bytes (3 x RGB16F per texel).
+        #: Lightmap texels resident on the GPU and their bytes (7 x RGB16F per texel).
         self.texels = 0
         self.gpu_bytes = 0
+        self._baked_ssbo: moderngl.Buffer | None = None
+        self._baked_key: tuple[int, bytes] | None = None
+        #: Baked lights evaluated per frame on pixels without a lightmap.
+        self.baked_in_view = 0
 
     def attach(self, stage: Usd.Stage) -> None:
         """The stage whose baked meshes this pass draws (set by the engine)."""
@@ -121,7 +138,9 @@ class LightmapTask(Pass):
 
     def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
         if self._has is None:
-            self._has = self.stage is not None and stage_has_lightmaps(self.stage)
+            self._has = bool(self.delegate.light_table.baked.any()) or (
+                self.stage is not None and stage_has_lightmaps(self.stage)
+            )
         return (self.reads, self.writes) if self._has else ((), ())
 
     def _load(self, frame: FrameContext) -> list[_Lightmapped]:
@@ -187,43 +206,104 @@ class LightmapTask(Pass):
             t.filter = (moderngl.LINEAR, moderngl.LINEAR)
             t.repeat_x = t.repeat_y = False
             texs.append(t)
-            self.texels += w * h
             self.gpu_bytes += w * h * 6
+        self.texels += planes[0].shape[0] * planes[0].shape[1]
         vao = ctx.vertex_array(prog, [(vbo, "3f 2f", "in_pos", "in_uv")])
         return _Lightmapped(path, vbo, vao, texs, len(verts))
 
     def execute(self, frame: FrameContext) -> None:
         if self._items is None:
             self._items = self._load(frame)
-        if not self._items:
-            return
         ctx = frame.ctx
         bufs = frame.buffers
-        prog = shader_library(ctx).program("bake_apply.vert", "bake_apply.frag")
-        cast(moderngl.Uniform, prog["u_depth_match"]).value = DEPTH_MATCH_REL
-        unit = 0
-        for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal"):
-            bufs.textures[name].use(unit)
-            cast(moderngl.Uniform, prog[name]).value = unit
-            unit += 1
-        fbo = bufs.framebuffer("fb_lightmap", ["g_emission"])
-        fbo.use()
+        bufs.framebuffer("fb_lightmap_mask", ["lightmap_mask"]).clear(0.0, 0.0, 0.0, 0.0)
         ctx.viewport = (0, 0, *bufs.size)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
         try:
-            for it in self._items:
-                for k, t in enumerate(it.textures):
-                    t.use(unit + k)
-                    cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
-                assert it.vao is not None
-                it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
+            if self._items:
+                self._draw_lightmaps(frame)
+            self._draw_dynamic(frame)
         finally:
             ctx.disable(moderngl.BLEND)
             ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
 
+    def _bind_gbuffer(self, frame: FrameContext, prog: moderngl.Program) -> int:
+        unit = 0
+        for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal", "lightmap_mask"):
+            if name == "lightmap_mask" and "u_mask" not in prog:
+                continue
+            if name != "lightmap_mask" and name not in prog:
+                continue
+            frame.buffers.textures[name].use(unit)
+            key = "u_mask" if name == "lightmap_mask" else name
+            cast(moderngl.Uniform, prog[key]).value = unit
+            unit += 1
+        return unit
+
+    def _draw_lightmaps(self, frame: FrameContext) -> None:
+        assert self._items is not None
+        prog = shader_library(frame.ctx).program("bake_apply.vert", "bake_apply.frag")
+        cast(moderngl.Uniform, prog["u_depth_match"]).value = DEPTH_MATCH_REL
+        cast(moderngl.Uniform, prog["u_facet_match"]).value = FACET_MATCH_COS
+        fbo = frame.buffers.framebuffer("fb_lightmap", ["g_emission", "lightmap_mask"])
+        fbo.use()
+        unit = 0
+        for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal"):
+            frame.buffers.textures[name].use(unit)
+            cast(moderngl.Uniform, prog[name]).value = unit
+            unit += 1
+        for it in self._items:
+            for k, t in enumerate(it.textures):
+                t.use(unit + k)
+                cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
+            assert it.vao is not None
+            it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
+
+    def _draw_dynamic(self, frame: FrameContext) -> None:
+        """Baked in-view lights on the pixels no lightmap covered (reference, unshadowed)."""
+        t = self.delegate.light_table
+        rows = cull_lights(t, frame.view.frustum_planes())
+        rows = rows[t.baked[rows]]
+        self.baked_in_view = len(rows)
+        if not len(rows):
+            return
+        ctx = frame.ctx
+        packed = pack_lights(t, rows)
+        key = (t.version, rows.tobytes())
+        if self._baked_key != key:
+            data = np.ascontiguousarray(packed, dtype=np.float32).tobytes()
+            if self._baked_ssbo is None or self._baked_ssbo.size < len(data):
+                if self._baked_ssbo is not None:
+                    self._baked_ssbo.release()
+                self._baked_ssbo = ctx.buffer(reserve=max(len(data), 4096))
+            self._baked_ssbo.write(data)
+            self._baked_key = key
+        assert self._baked_ssbo is not None
+        defines: dict[str, object] = {}
+        d = self.delegate
+        if d.has_ies and bool(np.any(t.ies_layer[rows] >= 0)):
+            defines["HAS_IES"] = True
+        if bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))):
+            defines["HAS_CONES"] = True
+        prog = shader_library(ctx).program("fullscreen.vert", "bake_dynamic.frag", defines)
+        unit = self._bind_gbuffer(frame, prog)
+        if "u_ies" in prog and d.ies_texture is not None:
+            d.ies_texture.use(unit)
+            cast(moderngl.Uniform, prog["u_ies"]).value = unit
+        cast(moderngl.Uniform, prog["u_baked_count"]).value = len(rows)
+        self._baked_ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
+        fbo = frame.buffers.framebuffer("fb_lightmap_dyn", ["g_emission"])
+        fbo.use()
+        fullscreen_vao(ctx, prog).render(moderngl.TRIANGLES, vertices=3)
+        if d.light_ssbo is not None:  # the frame's own light buffer back in place
+            d.light_ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
+
     def release(self) -> None:
+        if self._baked_ssbo is not None:
+            self._baked_ssbo.release()
+            self._baked_ssbo = None
         for it in self._items or []:
             if it.vao is not None:
                 it.vao.release()
