@@ -209,7 +209,8 @@ def unwrap_mesh(src: MeshSource, density: float, cache_dir: Path | None = None) 
         uv_fv = flat_uv
         normals_fv = normals_fv[flat_c]
     t_uv = uv_fv[corners]
-    a_uv = np.abs(np.cross(t_uv[:, 1] - t_uv[:, 0], t_uv[:, 2] - t_uv[:, 0]))
+    e1, e2 = t_uv[:, 1] - t_uv[:, 0], t_uv[:, 2] - t_uv[:, 0]
+    a_uv = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     flat = int(np.count_nonzero(~(a_uv > 0.0)))
     if flat:
         nm = non_manifold_edges(tris)
