@@ -5,6 +5,9 @@
 // the other lights' mean direction, each times its baked irradiance (bake_light.frag).
 #include "common/gbuffer.glsl"
 
+// Hidden fragments fail the G-buffer's depth test before shading (no depth writes).
+layout(early_fragment_tests) in;
+
 in vec3 v_world;
 in vec2 v_uv;
 

@@ -104,7 +104,7 @@ def test_lightmap_uvs_inside_unit_square_and_not_overlapping(repo):
             hi = np.ceil(np.maximum(np.maximum(a, b), c)).astype(int)
             sx, sy = gx[lo[1] : hi[1], lo[0] : hi[0]] + 0.5, gy[lo[1] : hi[1], lo[0] : hi[0]] + 0.5
 
-            def edge(p, q):
+            def edge(p, q, sx=sx, sy=sy):
                 return (q[0] - p[0]) * (sy - p[1]) - (q[1] - p[1]) * (sx - p[0])
 
             e = np.stack([edge(a, b), edge(b, c), edge(c, a)])
@@ -184,8 +184,9 @@ def test_mesh_xatlas_cannot_take_warns_and_stays_dynamic(tmp_path, gl_ctx):
         unwrap_mesh(mesh_world_data(prim, np.eye(4), Usd.TimeCode.Default()), 4.0, None)
     warnings: list[str] = []
     out = tmp_path / "baked.usda"
-    rep = bake_stage(src, out, texel_density=4.0, cache_dir=tmp_path / "c", progress=False,
-                     warn=warnings.append)
+    rep = bake_stage(
+        src, out, texel_density=4.0, cache_dir=tmp_path / "c", progress=False, warn=warnings.append
+    )
     assert list(rep.skipped) == ["/Bad"] and rep.meshes == ["/Ground"]
     bad = [w for w in warnings if "</Bad>" in w]
     assert len(bad) == 1 and "\n" not in bad[0] and "lit dynamically" in bad[0]

@@ -183,9 +183,7 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
 }
 """,
     )
-    exp["scenes/bake_dynamic.usda"] = Expected(
-        {("static_light_dynamic_geometry", "/Scene/Lamp")}
-    )
+    exp["scenes/bake_dynamic.usda"] = Expected({("static_light_dynamic_geometry", "/Scene/Lamp")})
     _w(
         lib / "scenes" / "bake_coarse.usda",
         _header("Scene")
@@ -206,7 +204,7 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
         "#usda 1.0\n(\n    customLayerData = {\n"
         '        dictionary "stb:bake" = {\n'
         '            dictionary lights = {\n                string "/Scene/Lamp" = "0"\n'
-        "            }\n            string time = \"2026-01-01T00:00:00Z\"\n        }\n    }\n"
+        '            }\n            string time = "2026-01-01T00:00:00Z"\n        }\n    }\n'
         '    defaultPrim = "Scene"\n    metersPerUnit = 1\n    upAxis = "Y"\n)\n\n'
     )
     _w(

@@ -6,8 +6,8 @@
    (de-instanced), ``stb bake`` at the default texel density (bake time, lightmap size);
 2. reference method, baked vs all-dynamic: HDR-FLIP (mid-grey exposed) over the image
    and relMSE over diffuse surfaces (roughness >= 0.5, metallic < 0.1);
-3. STB accumulating A=1 and A=16 frames, baked vs all-dynamic, one process: median frame time and FLIP
-   against the all-dynamic reference.
+3. STB accumulating A=1 and A=16 frames, baked vs all-dynamic, one process: median
+   frame time and FLIP against the all-dynamic reference.
 Writes OUTDIR/bake_acceptance.json and PNGs. The machine may be shared: times are
 medians of interleaved runs, compare the ratios.
 """
@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-import stb_hydra
 from stb_hydra.bake import bake_stage
 from stb_hydra.bake.mark import mark_static_layer
 from stb_hydra.io.images import write_image
@@ -36,6 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _surface_mask(eng: Engine) -> np.ndarray:
     """Diffuse surface pixels (roughness >= 0.5, metallic < 0.1), top row first."""
+
     def rd(name: str) -> np.ndarray:
         t = eng.buffers.textures[name]
         w, h = t.size
@@ -62,8 +62,9 @@ def flip_map(test: np.ndarray, ref: np.ndarray) -> np.ndarray:
 
 def render(path: Path, w: int, lighting: str, acc: int) -> tuple[np.ndarray, Engine]:
     """``acc`` frames accumulated (A)."""
-    eng = Engine(path, RenderSettings(width=w, height=w * 9 // 16, lighting=lighting,
-                                      accumulate=acc))
+    eng = Engine(
+        path, RenderSettings(width=w, height=w * 9 // 16, lighting=lighting, accumulate=acc)
+    )
     eng.render()
     return eng.aovs["color"][..., :3].copy(), eng
 
@@ -96,8 +97,14 @@ def main() -> int:
     baked = out / "court_baked.usda"
     marked = mark_static_layer(ROOT / "usd_scenes" / "default.usda", static)
     kw = {} if a.texel_density is None else {"texel_density": a.texel_density}
-    rep = bake_stage(static, baked, cache_dir=out / "xatlas_cache", progress=False,
-                     warn=lambda m: print("warning:", m, file=sys.stderr), **kw)
+    rep = bake_stage(
+        static,
+        baked,
+        cache_dir=out / "xatlas_cache",
+        progress=False,
+        warn=lambda m: print("warning:", m, file=sys.stderr),
+        **kw,
+    )
     res: dict = {
         "static_lights": len(marked),
         "baked_lights": len(rep.lights),

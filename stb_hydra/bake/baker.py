@@ -149,7 +149,7 @@ def bake_stage(
         layouts = _unwrap_all(sources, texel_density, cache_dir, jobs, rep, _warn)
         rep.seconds["unwrap"] = time.perf_counter() - t1
         if not light_paths:
-            _warn(f"{scene_p}: no static lights (stb:mobility = \"static\") to bake")
+            _warn(f'{scene_p}: no static lights (stb:mobility = "static") to bake')
         t2 = time.perf_counter()
         maps: dict[str, BakedMap] = {}
         if light_paths and layouts:
@@ -187,8 +187,10 @@ def _static_lights(eng: Engine, stage: Usd.Stage, warn: Callable[[str], None]) -
             continue
         prim = stage.GetPrimAtPath(path)
         if not prim or prim.IsInstanceProxy() or prim.IsInPrototype():
-            warn(f"light <{path}>: static but inside an instance (a layer cannot mark it "
-                 "baked); left dynamic")
+            warn(
+                f"light <{path}>: static but inside an instance (a layer cannot mark it "
+                "baked); left dynamic"
+            )
             continue
         out.append(path)
     return out
@@ -256,14 +258,16 @@ def _unwrap_all(
             warn(f"mesh <{path}>: not baked ({res}); lit dynamically")
             continue
         if res.density < density * 0.999:
-            warn(f"mesh <{path}>: lightmap density lowered to {res.density:.3g} texels/m "
-                 f"to fit {limits.BAKE_LIGHTMAP_MAX_SIZE} texels")
+            warn(
+                f"mesh <{path}>: lightmap density lowered to {res.density:.3g} texels/m "
+                f"to fit {limits.BAKE_LIGHTMAP_MAX_SIZE} texels"
+            )
         rep.cached += int(res.cached)
         layouts.append(res)
     return layouts
 
 
-def _progress_bar(total: int, enabled: bool):  # noqa: ANN202 - tqdm or None
+def _progress_bar(total: int, enabled: bool):
     if not enabled:
         return None
     from tqdm import tqdm
@@ -330,9 +334,7 @@ def _write_outputs(
     layer.customLayerData = {
         LAYER_KEY: {
             "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "texelDensity": float(np.median([lay.density for lay in layouts]))
-            if layouts
-            else 0.0,
+            "texelDensity": float(np.median([lay.density for lay in layouts])) if layouts else 0.0,
             "lights": fps,
             "meshes": Vt.StringArray(baked_meshes),
         }

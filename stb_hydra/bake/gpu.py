@@ -31,7 +31,7 @@ from ..renderer.engine import Engine
 from ..renderer.frame import FrameContext
 from ..renderer.fullscreen import draw_fullscreen
 from ..renderer.gl import shader_library
-from ..renderer.graph import Imported, Rec
+from ..renderer.graph import Imported
 from ..renderer.lighting.base import READS
 from ..renderer.lighting.reference import ReferenceLighting
 from ..renderer.records import InViewLights, LightBuffer
@@ -151,7 +151,9 @@ class LightmapBakePass(Pass):
             axis=1,
         )
         m = len(lay.corners)
-        edges = np.stack([np.arange(3 * m), (np.arange(3 * m) // 3) * 3 + (np.arange(3 * m) + 1) % 3])
+        edges = np.stack(
+            [np.arange(3 * m), (np.arange(3 * m) // 3) * 3 + (np.arange(3 * m) + 1) % 3]
+        )
         vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(edges.T.reshape(-1), dtype=np.uint32).tobytes())
         vao_t = ctx.vertex_array(raster, [(vbo, "2f 3f 3f", "in_uv", "in_pos", "in_normal")])
@@ -216,9 +218,7 @@ def _resolve(arrs: list[np.ndarray], cov: np.ndarray, ss: int) -> BakedMap:
     return BakedMap(*(p.astype(f32) for p in planes), (n / float(ss * ss)).astype(f32))
 
 
-def _dilate(
-    planes: list[np.ndarray], covered: np.ndarray
-) -> tuple[list[np.ndarray], np.ndarray]:
+def _dilate(planes: list[np.ndarray], covered: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
     """Empty texels next to covered ones get the mean of their covered 8-neighbours."""
     h, w = covered.shape
     pad = np.pad(covered, 1).astype(np.float32)

@@ -35,16 +35,24 @@ def mark_static_layer(scene: str | os.PathLike[str], out: str | os.PathLike[str]
     layer = Sdf.Layer.CreateAnonymous(".usda")
     layer.subLayerPaths.append(os.path.relpath(scene_p, out_p.parent))
     root = stage.GetRootLayer()
-    for key in ("upAxis", "metersPerUnit", "startTimeCode", "endTimeCode",
-                "framesPerSecond", "timeCodesPerSecond"):
+    for key in (
+        "upAxis",
+        "metersPerUnit",
+        "startTimeCode",
+        "endTimeCode",
+        "framesPerSecond",
+        "timeCodesPerSecond",
+    ):
         if root.pseudoRoot.HasInfo(key):
             layer.pseudoRoot.SetInfo(key, root.pseudoRoot.GetInfo(key))
     if root.defaultPrim:
         layer.defaultPrim = root.defaultPrim
     marked: list[str] = []
     for prim in Usd.PrimRange(stage.GetPseudoRoot(), Usd.TraverseInstanceProxies()):
-        if not prim.HasAPI(UsdLux.LightAPI) or prim.IsA(UsdLux.DistantLight) or prim.IsA(
-            UsdLux.DomeLight
+        if (
+            not prim.HasAPI(UsdLux.LightAPI)
+            or prim.IsA(UsdLux.DistantLight)
+            or prim.IsA(UsdLux.DomeLight)
         ):
             continue
         if _animated(prim):
@@ -58,7 +66,9 @@ def mark_static_layer(scene: str | os.PathLike[str], out: str | os.PathLike[str]
             p = p.GetParent()
         spec = Sdf.CreatePrimInLayer(layer, prim.GetPath())
         spec.specifier = Sdf.SpecifierOver
-        a = Sdf.AttributeSpec(spec, "stb:mobility", Sdf.ValueTypeNames.Token, Sdf.VariabilityUniform)
+        a = Sdf.AttributeSpec(
+            spec, "stb:mobility", Sdf.ValueTypeNames.Token, Sdf.VariabilityUniform
+        )
         a.default = "static"
         marked.append(str(prim.GetPath()))
     write_text_atomic(out_p, layer.ExportToString())

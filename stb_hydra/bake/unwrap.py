@@ -180,7 +180,7 @@ def unwrap_mesh(src: MeshSource, density: float, cache_dir: Path | None = None) 
                 vmap, idx, uvs, size = _xatlas(points, tris, d)
             except UnwrapError:
                 raise
-            except Exception as exc:  # xatlas raises bare RuntimeErrors
+            except Exception as exc:  # noqa: BLE001 - xatlas raises bare RuntimeErrors
                 raise UnwrapError(f"xatlas failed: {exc}") from None
             if max(size) <= limits.BAKE_LIGHTMAP_MAX_SIZE:
                 break

@@ -51,11 +51,7 @@ def _dynamic_overlap(stage: Usd.Stage) -> list[Finding]:
     for r in static:
         c = np.asarray(r.light.position, dtype=np.float64)
         rad = float(r.light.range)
-        hit = [
-            path
-            for path, lo, hi in boxes
-            if np.linalg.norm(np.clip(c, lo, hi) - c) < rad
-        ]
+        hit = [path for path, lo, hi in boxes if np.linalg.norm(np.clip(c, lo, hi) - c) < rad]
         if hit:
             more = f" and {len(hit) - 1} more" if len(hit) > 1 else ""
             out.append(
@@ -106,8 +102,11 @@ def _stale(stage: Usd.Stage) -> list[Finding]:
     ]
     if rec is None:
         return [
-            finding("bake_stale", str(p.GetPath()), "marked stb:baked but the stage has no "
-                    "bake record (customLayerData 'stb:bake')")
+            finding(
+                "bake_stale",
+                str(p.GetPath()),
+                "marked stb:baked but the stage has no bake record (customLayerData 'stb:bake')",
+            )
             for p in baked
         ]
     from ..bake.baker import light_fingerprint
@@ -130,7 +129,11 @@ def _stale(stage: Usd.Stage) -> list[Finding]:
     for p in baked:
         if str(p.GetPath()) not in fps:
             out.append(
-                finding("bake_stale", str(p.GetPath()), f"marked stb:baked but not in the bake of {when}")
+                finding(
+                    "bake_stale",
+                    str(p.GetPath()),
+                    f"marked stb:baked but not in the bake of {when}",
+                )
             )
     return out
 

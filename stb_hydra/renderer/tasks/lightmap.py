@@ -17,6 +17,7 @@ graph only when the stage has lightmaps (``io()`` is empty otherwise, so it is c
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
@@ -29,10 +30,10 @@ from ...scene.prims import CONE_CUTOFF_TEST_RAD
 from ..frame import FrameContext
 from ..fullscreen import fullscreen_vao
 from ..gl import shader_library
-from ..light_buffer import cull_lights, pack_lights
-from ..shader_constants import SSBO_LIGHTS
 from ..graph import Imported, Rec, Resource, Tex
+from ..light_buffer import cull_lights, pack_lights
 from ..records import FrameBlock
+from ..shader_constants import SSBO_LIGHTS
 from .base import Pass
 
 if TYPE_CHECKING:
@@ -105,6 +106,30 @@ def read_lightmap(path: str) -> list[np.ndarray]:
     return out
 
 
+#: Texels between two meshes' lightmaps in the runtime atlas (edge-replicated).
+ATLAS_GAP_TEXELS = 4
+
+
+def shelf_pack(
+    sizes: list[tuple[int, int]], gap: int
+) -> tuple[list[tuple[int, int]], tuple[int, int]]:
+    """Shelf packing of (w, h) rects, tallest first: (x, y) offsets (texels, ``gap``
+    apart and from the border) and the atlas (width, height)."""
+    area = sum((w + gap) * (h + gap) for w, h in sizes)
+    width = max(max(w for w, _ in sizes) + 2 * gap, math.ceil(math.sqrt(area * 1.1)))
+    order = sorted(range(len(sizes)), key=lambda i: -sizes[i][1])
+    offsets = [(0, 0)] * len(sizes)
+    x, y, shelf = gap, gap, 0
+    for i in order:
+        w, h = sizes[i]
+        if x + w + gap > width:
+            x, y, shelf = gap, y + shelf + gap, 0
+        offsets[i] = (x, y)
+        x += w + gap
+        shelf = max(shelf, h)
+    return offsets, (width, y + shelf + gap)
+
+
 class LightmapTask(Pass):
     name = "lightmap"
     reads = (
@@ -115,8 +140,15 @@ class LightmapTask(Pass):
         Tex("g_base_rough", "rgba16f"),
         Tex("g_f0_metal", "rgba16f"),
         Tex("g_emission", "rgba16f"),
+        Tex("g_zbuffer", "depth24"),
     )
-    writes = (Tex("g_emission", "rgba16f"), Tex("lightmap_mask", "r8"))
+    #: g_zbuffer is only the depth test's attachment (early-z culls hidden fragments of
+    #: the re-drawn meshes; nothing is written to it), declared as modified in place.
+    writes = (
+        Tex("g_emission", "rgba16f"),
+        Tex("lightmap_mask", "r8"),
+        Tex("g_zbuffer", "depth24"),
+    )
 
     def __init__(self, delegate: GLRenderDelegate) -> None:
         super().__init__(delegate)
@@ -144,30 +176,57 @@ class LightmapTask(Pass):
         return (self.reads, self.writes) if self._has else ((), ())
 
     def _load(self, frame: FrameContext) -> list[_Lightmapped]:
+        """Every baked mesh's triangles and lightmap, packed into one vertex buffer and
+        one atlas per plane (one draw per frame: per-draw cost dominates on software
+        GL). Meshes whose lightmap cannot be used are warned about and skipped."""
         assert self.stage is not None
-        ctx = frame.ctx
-        prog = shader_library(ctx).program("bake_apply.vert", "bake_apply.frag")
-        items: list[_Lightmapped] = []
+        parts: list[tuple[str, np.ndarray, list[np.ndarray]]] = []
         for prim in self.stage.Traverse():
             fa = prim.GetAttribute(FILE_ATTR)
             if not fa or not fa.HasAuthoredValue() or not prim.IsA(UsdGeom.Mesh):
                 continue
             path = str(prim.GetPath())
             try:
-                items.append(self._load_one(ctx, prog, prim, fa))
+                parts.append((path, *self._read_one(prim, fa)))
             except (OSError, ValueError) as exc:
                 frame.warnings.append(
                     f"mesh <{path}>: lightmap not used ({exc}); its baked lights are missing"
                 )
-        return items
+        if not parts:
+            return []
+        sizes = [(pl[0].shape[1], pl[0].shape[0]) for _, _, pl in parts]
+        offsets, (aw, ah) = shelf_pack(sizes, ATLAS_GAP_TEXELS)
+        n_planes = len(parts[0][2])
+        # RGBA16F: 3-channel half textures take a slow path in software GL.
+        atlas = [np.zeros((ah, aw, 4), dtype=np.float16) for _ in range(n_planes)]
+        verts = []
+        g = ATLAS_GAP_TEXELS // 2
+        for (_path, v, planes), (ox, oy), (w, h) in zip(parts, offsets, sizes):
+            for k, plane in enumerate(planes):
+                # Edge-replicated border: bilinear lookups at a rect's edge stay inside it.
+                padded = np.pad(plane, ((g, g), (g, g), (0, 0)), mode="edge")
+                atlas[k][oy - g : oy + h + g, ox - g : ox + w + g, :3] = padded
+            v = v.copy()
+            v[:, 3] = (ox + v[:, 3] * w) / aw
+            v[:, 4] = (oy + v[:, 4] * h) / ah
+            verts.append(v)
+        ctx = frame.ctx
+        prog = shader_library(ctx).program("bake_apply.vert", "bake_apply.frag")
+        allv = np.ascontiguousarray(np.concatenate(verts), dtype=np.float32)
+        vbo = ctx.buffer(allv.tobytes())
+        texs = []
+        for plane in atlas:
+            t = ctx.texture((aw, ah), 4, np.ascontiguousarray(plane).tobytes(), dtype="f2")
+            t.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            t.repeat_x = t.repeat_y = False
+            texs.append(t)
+        self.texels = aw * ah
+        self.gpu_bytes = aw * ah * 8 * n_planes
+        vao = ctx.vertex_array(prog, [(vbo, "3f 2f", "in_pos", "in_uv")])
+        return [_Lightmapped("atlas", vbo, vao, texs, len(allv))]
 
-    def _load_one(
-        self,
-        ctx: moderngl.Context,
-        prog: moderngl.Program,
-        prim: Usd.Prim,
-        fa: Usd.Attribute,
-    ) -> _Lightmapped:
+    def _read_one(self, prim: Usd.Prim, fa: Usd.Attribute) -> tuple[np.ndarray, list[np.ndarray]]:
+        """(vertices (3 m, 5): world position, lightmap UV; lightmap planes) of one mesh."""
         from ...scene.geometry import _read_topology, _Topology
 
         path = str(prim.GetPath())
@@ -196,20 +255,9 @@ class LightmapTask(Pass):
         verts = np.concatenate(
             [pts[topo.fvi[corners], :3].astype(np.float32), uv_fv[corners]], axis=1
         )
-        if not np.all(np.isfinite(verts)):
-            raise ValueError("non-finite positions or lightmap UVs")
-        vbo = ctx.buffer(np.ascontiguousarray(verts, dtype=np.float32).tobytes())
-        texs = []
-        for plane in planes:
-            h, w, _ = plane.shape
-            t = ctx.texture((w, h), 3, np.ascontiguousarray(plane, dtype=np.float16).tobytes(), dtype="f2")
-            t.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            t.repeat_x = t.repeat_y = False
-            texs.append(t)
-            self.gpu_bytes += w * h * 6
-        self.texels += planes[0].shape[0] * planes[0].shape[1]
-        vao = ctx.vertex_array(prog, [(vbo, "3f 2f", "in_pos", "in_uv")])
-        return _Lightmapped(path, vbo, vao, texs, len(verts))
+        if not np.all(np.isfinite(verts)) or uv_fv.min() < 0.0 or uv_fv.max() > 1.0:
+            raise ValueError("non-finite positions or lightmap UVs outside [0, 1]")
+        return verts, planes
 
     def execute(self, frame: FrameContext) -> None:
         if self._items is None:
@@ -247,8 +295,16 @@ class LightmapTask(Pass):
         prog = shader_library(frame.ctx).program("bake_apply.vert", "bake_apply.frag")
         cast(moderngl.Uniform, prog["u_depth_match"]).value = DEPTH_MATCH_REL
         cast(moderngl.Uniform, prog["u_facet_match"]).value = FACET_MATCH_COS
-        fbo = frame.buffers.framebuffer("fb_lightmap", ["g_emission", "lightmap_mask"])
+        ctx = frame.ctx
+        fbo = frame.buffers.framebuffer("fb_lightmap", ["g_emission", "lightmap_mask"], "g_zbuffer")
         fbo.use()
+        fbo.depth_mask = False
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<="
+        # The G-buffer drew these triangles from GPU-transformed vertices, this pass from
+        # CPU-transformed ones: pull them a little towards the eye so equal surfaces pass
+        # (the shader's own depth and facet checks then decide).
+        ctx.polygon_offset = (-1.0, -4.0)
         unit = 0
         for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal"):
             frame.buffers.textures[name].use(unit)
@@ -260,6 +316,9 @@ class LightmapTask(Pass):
                 cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
             assert it.vao is not None
             it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
+        ctx.polygon_offset = (0.0, 0.0)
+        ctx.disable(moderngl.DEPTH_TEST)
+        fbo.depth_mask = True
 
     def _draw_dynamic(self, frame: FrameContext) -> None:
         """Baked in-view lights on the pixels no lightmap covered (reference, unshadowed)."""
@@ -311,4 +370,3 @@ class LightmapTask(Pass):
             for t in it.textures:
                 t.release()
         self._items = None
-
