@@ -84,6 +84,20 @@ def frame_ms(engines: dict[str, Engine], frames: int) -> dict[str, float]:
     return {k: float(np.median(v)) for k, v in times.items()}
 
 
+def pass_ms(engines: dict[str, Engine], frames: int = 3) -> dict[str, dict[str, float]]:
+    """Median GPU-synchronised time of the main passes (``profile=True`` frames)."""
+    out: dict[str, dict[str, float]] = {}
+    for k, e in engines.items():
+        e.settings.profile = True
+        for _ in range(frames):
+            e.render_frame()
+        e.settings.profile = False
+        fr = e.timings.frames[-frames:]
+        names = ("shadow_atlas", "gbuffer", "lightmap", "lighting", "color_correction")
+        out[k] = {n: float(np.median([f.get(n, 0.0) for f in fr])) for n in names}
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("outdir")
@@ -133,14 +147,15 @@ def main() -> int:
     write_image(out / "ref_diff_x4.png", np.abs(img - ref) * 4.0)
     e_ref.release()
     e_b.release()
-    for A in (1, 16):
+    for method, A in (("stb", 1), ("stb", 16), ("reference", 1)):
         engines = {}
         imgs = {}
         for name, p in (("dynamic", static), ("baked", baked)):
-            imgs[name], engines[name] = render(p, a.width, "stb", A)
+            imgs[name], engines[name] = render(p, a.width, method, A)
         ms = frame_ms(engines, a.frames)
-        res[f"stb_A{A}"] = {
+        res[f"{method}_A{A}"] = {
             "frame_ms": ms,
+            "pass_ms": pass_ms(engines),
             "speedup": ms["dynamic"] / max(ms["baked"], 1e-9),
             "flip_hdr": {k: flip_hdr_midgrey(v, ref) for k, v in imgs.items()},
             "flip_hdr_diffuse": {k: float(flip_map(v, ref)[mask].mean()) for k, v in imgs.items()},
