@@ -30,7 +30,7 @@ from .. import limits
 from ..renderer.engine import Engine
 from ..renderer.frame import FrameContext
 from ..renderer.fullscreen import draw_fullscreen
-from ..renderer.gl import shader_library
+from ..renderer.gl import park, shader_library
 from ..renderer.graph import Imported
 from ..renderer.lighting.base import READS
 from ..renderer.lighting.reference import ReferenceLighting
@@ -177,6 +177,7 @@ class LightmapBakePass(Pass):
             arrs = [_read(t, size) for t in outs]
             cov = _read(pos, size)[..., 3]
         finally:
+            park(ctx)  # never leave a framebuffer bound that is about to be deleted
             for o in (vao_t, vao_e, vbo, ibo, fbo_g, fbo_l, pos, nrm, *outs):
                 o.release()
         return _resolve(arrs, cov, ss)

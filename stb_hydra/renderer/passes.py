@@ -90,7 +90,6 @@ def build_passes(
         LightUploadTask(delegate),
         uniforms,
         GBufferTask(delegate),
-        lightmap,
         HiZTask(delegate, max(HIZ_LEVELS, method.hiz_level)),
         lighting,
         temporal if temporal is not None else accumulate,
@@ -98,6 +97,7 @@ def build_passes(
         *method.debug_passes(),
         LightCountTask(delegate),
         aov,
+        lightmap,  # after gbuffer, before lighting (it modifies g_emission in place)
     ]
     return PassSet(passes, lighting, accumulate, temporal, aov, uniforms, atlas, lightmap)
 

@@ -275,7 +275,7 @@ class LightmapTask(Pass):
             self._draw_dynamic(frame)
         finally:
             ctx.disable(moderngl.BLEND)
-            ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
+            ctx.blend_func = moderngl.DEFAULT_BLENDING
 
     def _bind_gbuffer(self, frame: FrameContext, prog: moderngl.Program) -> int:
         unit = 0
@@ -316,7 +316,9 @@ class LightmapTask(Pass):
                 cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
             assert it.vao is not None
             it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
+        # Shared context: leave the depth state as every other pass expects it.
         ctx.polygon_offset = (0.0, 0.0)
+        ctx.depth_func = "<"
         ctx.disable(moderngl.DEPTH_TEST)
         fbo.depth_mask = True
 
