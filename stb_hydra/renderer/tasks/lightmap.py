@@ -268,14 +268,14 @@ class LightmapTask(Pass):
         ctx.viewport = (0, 0, *bufs.size)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         ctx.enable(moderngl.BLEND)
-        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        ctx.blend_func = (moderngl.ONE, moderngl.ONE)
         try:
             if self._items:
                 self._draw_lightmaps(frame)
             self._draw_dynamic(frame)
         finally:
             ctx.disable(moderngl.BLEND)
-            ctx.blend_func = moderngl.DEFAULT_BLENDING
+            ctx.blend_func = (moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA)  # the default
 
     def _bind_gbuffer(self, frame: FrameContext, prog: moderngl.Program) -> int:
         unit = 0
