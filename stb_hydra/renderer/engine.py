@@ -133,7 +133,7 @@ class Engine:
         method = self._make_method(name, options)  # validates before anything changes
         old = self._set
         for p in old.passes:
-            if p is not old.shadow_atlas and p is not old.frame_uniforms:
+            if p not in (old.shadow_atlas, old.frame_uniforms, old.lightmap):
                 p.release()
         self.method = method
         self.settings.lighting = name

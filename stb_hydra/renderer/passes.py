@@ -81,7 +81,9 @@ def build_passes(
     accumulate = AccumulateTask(delegate)
     temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
     aov = AovOutputTask(delegate, method)
-    lightmap = LightmapTask(delegate)
+    # The lightmap atlas is method-independent: kept across set_lighting like the atlas.
+    lightmap = keep.lightmap if keep is not None and keep.lightmap is not None else None
+    lightmap = lightmap or LightmapTask(delegate)
     passes: list[Pass] = [
         DistantLightsTask(delegate),
         LightCullTask(delegate),
