@@ -312,8 +312,9 @@ class LightmapTask(Pass):
             unit += 1
         for it in self._items:
             for k, t in enumerate(it.textures):
-                t.use(unit + k)
-                cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
+                if f"u_lightmap{k}" in prog:  # a plane the shader does not read is optimised out
+                    t.use(unit + k)
+                    cast(moderngl.Uniform, prog[f"u_lightmap{k}"]).value = unit + k
             assert it.vao is not None
             it.vao.render(moderngl.TRIANGLES, vertices=it.vertices)
         # Shared context: leave the depth state as every other pass expects it.
