@@ -200,3 +200,40 @@ def test_mesh_xatlas_cannot_take_warns_and_stays_dynamic(tmp_path, gl_ctx):
     on_bad = (pts[..., 0] > 2.1) & (pts[..., 0] < 2.9) & (pts[..., 2] > 2.1) & (pts[..., 2] < 2.9)
     assert on_bad.sum() > 4
     np.testing.assert_allclose(img[on_bad, :3], ref[on_bad, :3], rtol=0.02)
+
+
+def test_mobility_token_default_static_and_bad_value():
+    """``stb:mobility``: default dynamic, "static" read, anything else warned -> dynamic."""
+    from stagegen import usda_stage
+
+    from stb_hydra.validate.analysis import build_analysis
+
+    stage = usda_stage(
+        '#usda 1.0\n(\n    metersPerUnit = 1\n    upAxis = "Y"\n)\n'
+        + "".join(
+            f'def SphereLight "{n}" {{\n    float inputs:intensity = 100\n{extra}}}\n'
+            for n, extra in (
+                ("Plain", ""),
+                ("Static", '    uniform token stb:mobility = "static"\n'),
+                ("Odd", '    uniform token stb:mobility = "sometimes"\n'),
+            )
+        )
+    )
+    ana = build_analysis(stage)
+    got = {r.prim_path: r.light.mobility for r in ana.lights}
+    assert got == {"/Plain": "dynamic", "/Static": "static", "/Odd": "dynamic"}
+    assert any("stb:mobility 'sometimes'" in w for w in ana.warnings)
+
+
+def test_cli_bake_writes_layer_and_refuses_bad_arguments(tmp_path, baked_plane, capsys):
+    from stb_hydra.apps.cli import main
+
+    src = baked_plane[0]
+    out = tmp_path / "cli.usda"
+    args = ["bake", str(src), "-o", str(out), "--texel-density", "2", "--quiet"]
+    assert main([*args, "--cache-dir", str(tmp_path / "c")]) == 0
+    assert out.is_file() and (tmp_path / "cli_lightmaps" / "Ground.exr").is_file()
+    assert main(["bake", str(src), "-o", str(out), "--texel-density", "0"]) == 2
+    assert main(["bake", str(src), "-o", str(tmp_path / "no" / "x.usda")]) == 2
+    err = capsys.readouterr().err
+    assert "--texel-density must be > 0" in err and "no such directory" in err
