@@ -314,3 +314,32 @@ STB_PATTERN_SIGMA_QUADS = 4.0
 #: and twice this many). Unbounded, a long-running engine (previewer, soak) grew by
 #: ~1.6 KiB per frame for ever (docs/RELIABILITY.md); benchmarks use far fewer frames.
 TIMINGS_KEPT_FRAMES = 1024
+
+# --- Static lighting bake (`stb bake`, stb_hydra/bake; issue 17) ------------------------
+
+#: Default lightmap texel density (texels per metre, world space). 16/m = 6 cm texels:
+#: finer than the shadow-map texels of the courtyard's lamps at 1080p (so lightmaps do
+#: not blur the shadows further), ~0.6 Mtexel for its ~2500 m^2 of static surface.
+BAKE_TEXEL_DENSITY_DEFAULT = 16.0
+#: Largest lightmap side (texels); a mesh whose charts do not fit at the requested
+#: density is packed at a lower one (with a warning): GL_MAX_TEXTURE_SIZE is >= 8192
+#: on every GL 4.3 driver, 4096 keeps one lightmap <= 128 MiB at the bake's RGBA32F.
+BAKE_LIGHTMAP_MAX_SIZE = 4096
+#: Triangles above which a mesh is not unwrapped (lit dynamically, warned): xatlas's
+#: chart growing is super-linear; 200 k triangles take ~1 min on one core.
+BAKE_MAX_TRIANGLES = 200_000
+#: Faces smaller than this (m^2) are degenerate: xatlas leaves them without charts,
+#: so a mesh with any is not baked (warned) rather than sampled at garbage UVs.
+BAKE_MIN_FACE_AREA_M2 = 1e-10
+#: Supersampling per lightmap texel axis (2 = 4 evaluations per texel, box filter).
+BAKE_SUPERSAMPLE = 2
+#: Empty texels between charts (xatlas padding) and dilation passes into them, so
+#: bilinear lookups at chart edges never blend in unbaked (black) texels.
+BAKE_PADDING_TEXELS = 2
+BAKE_DILATE_TEXELS = 4
+#: Viewport height (px) the bake's shadow-map resolution policy is run for: maps are
+#: sized as for a 1080p frame (the reference renders' quality), up to SHADOW_MAP_MAX_SIZE.
+BAKE_SHADOW_VIEW_HEIGHT = 1080
+#: `stb validate` (lightmap_density): lightmaps coarser than this (texels per metre,
+#: 25 cm texels) blur light pools and shadows visibly at street-level viewing distances.
+VALIDATE_LIGHTMAP_TEXEL_DENSITY_MIN = 4.0

@@ -109,7 +109,12 @@ ALL_FEATURES = {
     "STB_PIXEL_TERMS": True,
     "CULL_GROUP_SIZE": 64,
 }
-_VERTEX_OF = {"gbuffer.frag": "gbuffer.vert", "depth_only.frag": "depth_only.vert"}
+_VERTEX_OF = {
+    "gbuffer.frag": "gbuffer.vert",
+    "depth_only.frag": "depth_only.vert",
+    "bake_raster.frag": "bake_raster.vert",
+    "bake_apply.frag": "bake_apply.vert",
+}
 
 
 @pytest.mark.gl

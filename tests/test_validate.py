@@ -204,6 +204,7 @@ def test_validators_registered_under_keyword_stb():
             "StbNoiseRisk",
             "StageUnits",
             "AssetPaths",
+            "StaticBake",
         )
     )
     md = reg.GetValidatorMetadata(f"{PLUGIN_NAME}:LightValues")
@@ -249,7 +250,7 @@ def test_plugin_loads_in_a_fresh_usd_process(library, repo):
         timeout=120,
     )
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "7 ['exposure_invalid'] True"
+    assert out.stdout.strip() == "8 ['exposure_invalid'] True"
 
 
 # --- CLI ------------------------------------------------------------------------------

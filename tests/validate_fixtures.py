@@ -165,6 +165,57 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
         }
     )
 
+    # StaticBake (stb bake, issue 17): a static light over dynamic geometry, a coarse
+    # lightmap, and a light marked baked whose fingerprint no longer matches the record.
+    static = '    uniform token stb:mobility = "static"\n'
+    _w(
+        lib / "scenes" / "bake_dynamic.usda",
+        _header("Scene")
+        + 'def Xform "Scene"\n{\n'
+        + _light("Lamp", "5000", static)
+        + """    def Cube "Crate" (
+        prepend apiSchemas = ["StbGeometryAPI"]
+    )
+    {
+        double size = 0.5
+        uniform bool stb:dynamic = 1
+    }
+}
+""",
+    )
+    exp["scenes/bake_dynamic.usda"] = Expected({("static_light_dynamic_geometry", "/Scene/Lamp")})
+    _w(
+        lib / "scenes" / "bake_coarse.usda",
+        _header("Scene")
+        + """def Xform "Scene"
+{
+    def Mesh "Floor"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)]
+        uniform float stb:lightmap:texelDensity = 1
+    }
+}
+""",
+    )
+    exp["scenes/bake_coarse.usda"] = Expected({("lightmap_density", "/Scene/Floor")})
+    stale = (
+        "#usda 1.0\n(\n    customLayerData = {\n"
+        '        dictionary "stb:bake" = {\n'
+        '            dictionary lights = {\n                string "/Scene/Lamp" = "0"\n'
+        '            }\n            string time = "2026-01-01T00:00:00Z"\n        }\n    }\n'
+        '    defaultPrim = "Scene"\n    metersPerUnit = 1\n    upAxis = "Y"\n)\n\n'
+    )
+    _w(
+        lib / "scenes" / "bake_stale.usda",
+        stale
+        + 'def Xform "Scene"\n{\n'
+        + _light("Lamp", "5000", static + "    uniform bool stb:baked = 1\n")
+        + "}\n",
+    )
+    exp["scenes/bake_stale.usda"] = Expected({("bake_stale", "/Scene/Lamp")})
+
     # Not USD at all, and a layer the runner must survive.
     _w(lib / "broken" / "garbage.usda", '#usda 1.0\ndef Xform "A" {\n  this is not usda\n')
     exp["broken/garbage.usda"] = Expected({("unreadable", "/")}, opened=False)

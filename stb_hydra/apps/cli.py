@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-VERBS = ("render", "inspect", "bench", "validate", "tradeoff", "preview")
+VERBS = ("render", "inspect", "bench", "validate", "tradeoff", "preview", "bake")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -114,6 +114,8 @@ class Engine:
         )
         ps.aov_output.requested = self._requested_aovs
         ps.aov_output.on_change = self._invalidate_graph
+        if ps.lightmap is not None:
+            ps.lightmap.attach(self.stage)  # baked static light (tasks/lightmap.py)
         self._graph = None
         return ps
 
@@ -141,7 +143,7 @@ class Engine:
         method = self._make_method(name, options)  # validates before anything changes
         old = self._set
         for p in old.passes:
-            if p is not old.shadow_atlas and p is not old.frame_uniforms:
+            if p not in (old.shadow_atlas, old.frame_uniforms, old.lightmap):
                 p.release()
         self.method = method
         self.settings.lighting = name

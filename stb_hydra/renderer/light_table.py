@@ -45,6 +45,8 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "specular": ((), np.float32, 1.0),
     "shadow_enable": ((), np.bool_, False),
     "shadow_dynamic": ((), np.bool_, False),
+    "static": ((), np.bool_, False),  # stb:mobility = static
+    "baked": ((), np.bool_, False),  # stb:baked: lit by the lightmaps, not per frame
     "shadow_color": ((3,), np.float32, 0.0),
     "shadow_distance": ((), np.float32, -1.0),
     "shadow_falloff": ((), np.float32, -1.0),
@@ -172,6 +174,8 @@ class LightTable:
         c["specular"][row] = lp.specular
         c["shadow_enable"][row] = lp.shadow_enable
         c["shadow_dynamic"][row] = lp.shadow_update == prims.SHADOW_DYNAMIC
+        c["static"][row] = lp.mobility == prims.MOBILITY_STATIC
+        c["baked"][row] = lp.baked
         c["shadow_color"][row] = lp.shadow_color
         c["shadow_distance"][row] = lp.shadow_distance
         c["shadow_falloff"][row] = lp.shadow_falloff

@@ -26,6 +26,7 @@ from .tasks.hiz import HIZ_LEVELS, HiZTask
 from .tasks.light_cull import LightCullTask
 from .tasks.light_upload import LightUploadTask
 from .tasks.lighting import LightingTask
+from .tasks.lightmap import LightmapTask
 from .tasks.shadow import SunShadowTask
 from .tasks.shadow_atlas import ShadowAtlasTask
 from .tasks.taa import AccumulateTask
@@ -47,6 +48,8 @@ class PassSet:
     aov_output: AovOutputTask
     frame_uniforms: FrameUniformsTask
     shadow_atlas: ShadowAtlasTask
+    #: Baked static light (``stb bake``); in the graph only when the stage has lightmaps.
+    lightmap: LightmapTask | None = None
 
 
 def build_passes(
@@ -78,6 +81,9 @@ def build_passes(
     accumulate = AccumulateTask(delegate)
     temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
     aov = AovOutputTask(delegate, method)
+    # The lightmap atlas is method-independent: kept across set_lighting like the atlas.
+    lightmap = keep.lightmap if keep is not None and keep.lightmap is not None else None
+    lightmap = lightmap or LightmapTask(delegate)
     passes: list[Pass] = [
         DistantLightsTask(delegate),
         LightCullTask(delegate),
@@ -93,8 +99,9 @@ def build_passes(
         *method.debug_passes(),
         LightCountTask(delegate),
         aov,
+        lightmap,  # after gbuffer, before lighting (it modifies g_emission in place)
     ]
-    return PassSet(passes, lighting, accumulate, temporal, aov, uniforms, atlas)
+    return PassSet(passes, lighting, accumulate, temporal, aov, uniforms, atlas, lightmap)
 
 
 __all__ = ["IMPORTS", "PassSet", "build_passes"]

@@ -715,6 +715,13 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
         _warn(lp, ctx, f"stb:shadow:update '{upd}' is not static|dynamic; using static")
         upd = prims.SHADOW_STATIC
     lp.shadow_update = str(upd)
+    # stb:mobility / stb:baked (issue 17, `stb bake`).
+    mob = a.get("stb:mobility", prims.MOBILITY_DYNAMIC)
+    if mob not in (prims.MOBILITY_STATIC, prims.MOBILITY_DYNAMIC):
+        _warn(lp, ctx, f"stb:mobility '{mob}' is not static|dynamic; using dynamic")
+        mob = prims.MOBILITY_DYNAMIC
+    lp.mobility = str(mob)
+    lp.baked = bool(a.get("stb:baked", False)) and lp.mobility == prims.MOBILITY_STATIC
 
 
 def _read_linking(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContext) -> None:

@@ -55,6 +55,9 @@ CONE_CUTOFF_TEST_RAD = 3.14159
 
 SHADOW_STATIC = "static"
 SHADOW_DYNAMIC = "dynamic"
+#: ``stb:mobility`` tokens: static lights may be baked into lightmaps (``stb bake``).
+MOBILITY_STATIC = "static"
+MOBILITY_DYNAMIC = "dynamic"
 
 
 def identity4() -> np.ndarray:
@@ -133,6 +136,10 @@ class LightPrim:
     shadow_falloff_gamma: float = 1.0
     # stb:* (StbLightAPI).
     shadow_update: str = SHADOW_STATIC
+    #: ``stb:mobility`` (static lights never move: ``stb bake`` may bake them).
+    mobility: str = MOBILITY_DYNAMIC
+    #: ``stb:baked``: the light's direct light is in the lightmaps (runtime skips it).
+    baked: bool = False
     #: Influence radius (m) at camera exposure scale 1: authored ``stb:range``, else
     #: where the peak illuminance falls to ``limits.LIGHT_CUTOFF_LUX``
     #: (:func:`stb_hydra.scene.lights.influence_range`; renderers rescale it with the

@@ -149,6 +149,28 @@ RULES: dict[str, Rule] = {
             "a prefab's total luminous flux is implausibly high",
             "check intensity units and metersPerUnit of the prefab's lights",
         ),
+        # -- StaticBake (stage validator; stb bake, docs/BAKE.md) --
+        _r(
+            "static_light_dynamic_geometry",
+            WARNING,
+            "StaticBake",
+            "a static light's influence reaches dynamic geometry (lit unshadowed once baked)",
+            "make the light dynamic, shrink its stb:range, or accept unshadowed light there",
+        ),
+        _r(
+            "lightmap_density",
+            WARNING,
+            "StaticBake",
+            "a baked mesh's lightmap texel density is under the threshold",
+            "re-run stb bake with a higher --texel-density",
+        ),
+        _r(
+            "bake_stale",
+            WARNING,
+            "StaticBake",
+            "a baked light moved, changed or vanished since the bake (or is not in it)",
+            "re-run stb bake on the edited scene",
+        ),
         # -- ShadowBudget (stage validator) --
         _r(
             "shadow_count",

@@ -24,6 +24,7 @@ from pxr import Plug, Sdf, Usd, UsdValidation
 from .asset_paths import check_asset_paths
 from .common import crash_hook
 from .findings import ERROR, HINT_SEP, INFO, KEYWORD, PLUGIN_NAME, WARNING, Finding
+from .rules_bake import check_bake
 from .rules_lights import check_ies, check_light_values
 from .rules_overlap import check_overlap
 from .rules_photometry import check_photometry
@@ -47,6 +48,7 @@ TASKS: dict[str, tuple[str, Callable]] = {
     "StbNoiseRisk": ("stage", check_overlap),
     "StageUnits": ("stage", check_units),
     "AssetPaths": ("stage", check_asset_paths),
+    "StaticBake": ("stage", check_bake),
 }
 
 

@@ -21,6 +21,7 @@ class LightCullTask(Pass):
     def prepare(self, frame: FrameContext) -> None:
         t = self.delegate.light_table
         rows = cull_lights(t, frame.view.frustum_planes())
+        rows = rows[~t.baked[rows]]  # baked lights come from the lightmaps (tasks/lightmap.py)
         frame.put(
             InViewLights(
                 rows=rows,
