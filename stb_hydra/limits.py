@@ -91,11 +91,18 @@ IES_MAX_TILT_PAIRS = 1024
 BIG_TILE_PX = 128
 SMALL_TILE_PX = 16
 QUAD_PX = 2
-#: Big-tile reservoir slots K: 16 in the talk; 4..64 for the trade-off study.
-BIG_TILE_SLOTS_DEFAULT = 16
+#: Big-tile reservoir slots K: 16 in the talk; 4..64 for the trade-off study. Default 64
+#: (issue 13, measured in docs/STB_NOTES.md): each slot streams n/K of the lights, so the
+#: big-tile pass costs the same for any K, the small-tile pass resamples K candidates per
+#: small tile (1/256 of the pixels), and with n <= K lights in view the big tile holds
+#: every light (no big-tile noise at all).
+BIG_TILE_SLOTS_DEFAULT = 64
 BIG_TILE_SLOTS_ALLOWED = (4, 8, 16, 32, 64)
-#: Small-tile samples N: one RGBA32UI texel holds at most 4.
+#: Small-tile samples N: one RGBA32UI texel holds at most 4. Default 1 (the talk's fixed
+#: cost); `-o N=4 -o select=pixel` (each pixel evaluates one of the 4) is the
+#: decorrelated alternative measured in docs/STB_NOTES.md (issue 13).
 SMALL_TILE_SAMPLES_MAX = 4
+SMALL_TILE_SAMPLES_DEFAULT = 1
 
 # --- Shadows ----------------------------------------------------------------------------
 
@@ -207,9 +214,11 @@ VALIDATE_SHADOW_REFERENCE_FOV_DEG = 60.0
 VALIDATE_PREFAB_ATLAS_FRACTION_MAX = 0.25
 
 #: Lights whose influence spheres may overlap at one surface point before STB noise is
-#: likely: a big tile holds K = 16 reservoir slots; beyond that each slot resamples
-#: several lights and the variance grows with the count (STB_SPEC "Big-tile sampling").
-VALIDATE_STB_OVERLAP_MAX = BIG_TILE_SLOTS_DEFAULT
+#: likely: the talk's K = 16 reservoir slots; beyond that each slot resamples several
+#: lights and the variance grows with the count (STB_SPEC "Big-tile sampling"). Kept at
+#: 16 when the renderer's default K became 64: it flags noise a person sees at 16
+#: accumulated frames, not the reservoir size.
+VALIDATE_STB_OVERLAP_MAX = 16
 #: Surface points sampled per asset (area-weighted over its meshes) for the overlap
 #: count: with 4096 points a region covering 0.1 % of the area is missed with
 #: probability (1 - 0.001)^4096 ~ 1.7 %.

@@ -67,7 +67,8 @@ def relmse(a: np.ndarray, b: np.ndarray, eps: float = 1e-2) -> float:
 
 @pytest.mark.parametrize("K", [4, 16, 64])
 def test_no_light_twice_in_a_big_tile_or_small_tile(gl_ctx, K):
-    eng = stb_engine(usda_stage(lights_scene(150)), K=K, N=4)
+    # The stream partition (select="all"): every big-tile slot in exactly one stream.
+    eng = stb_engine(usda_stage(lights_scene(150)), K=K, N=4, select="all")
     try:
         for _ in range(3):
             eng.render_frame()

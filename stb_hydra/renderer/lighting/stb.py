@@ -75,7 +75,13 @@ OPTIONS = Schema(
         choices=tuple(SLOT_BLOCKS),
         doc="reservoir slots per big tile",
     ),
-    Opt("N", int, 1, range=(1, limits.SMALL_TILE_SAMPLES_MAX), doc="samples per small tile"),
+    Opt(
+        "N",
+        int,
+        limits.SMALL_TILE_SAMPLES_DEFAULT,
+        range=(1, limits.SMALL_TILE_SAMPLES_MAX),
+        doc="samples per small tile",
+    ),
     Opt("big_tile", int, limits.BIG_TILE_PX, choices=(32, 64, 128, 256), doc="big tile, px"),
     Opt(
         "small_tile",
