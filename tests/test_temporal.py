@@ -130,12 +130,11 @@ def test_light_switched_off_vanishes_within_two_frames():
 
 
 def test_still_camera_taa_converges_like_accumulate(repo):
-    """64 frames of a still courtyard at 96x54: taa's relMSE is within 2.5x of
-    accumulate's (measured 2.14x: 0.073 vs 0.034; the issue asks 2x). taa jitters
-    the camera (its image is antialiased), so it is compared with the exact method
-    through the same taa pass (the jittered reference), accumulate with the plain
-    reference. Jitter alone costs ~1.8x here (taa without clipping: 0.061): edge
-    pixels see two surfaces and converge slower than a fixed sample position."""
+    """64 frames of a still courtyard at 96x54: taa's relMSE is within 2x of
+    accumulate's (the issue's figure; measured 1.26x with K = 64: 0.067 vs 0.053; it was
+    2.14x with K = 16). taa jitters the camera (its image is antialiased), so it is
+    compared with the exact method through the same taa pass (the jittered reference),
+    accumulate with the plain reference."""
     stage = str(repo / "usd_scenes" / "default.usda")
     w, h, n = 96, 54, 64
 
@@ -153,7 +152,7 @@ def test_still_camera_taa_converges_like_accumulate(repo):
 
     acc = relmse(run("stb", "accumulate"), run("reference", "accumulate"))
     taa = relmse(run("stb", "taa"), run("reference", "taa"))
-    assert taa <= 2.5 * acc, (taa, acc)
+    assert taa <= 2.0 * acc, (taa, acc)
 
 
 def _box_track(frames: int, moving: bool = True) -> str:
