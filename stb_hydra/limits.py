@@ -42,6 +42,11 @@ MIN_LIGHT_DISTANCE_M = 1.0e-3
 #: Colour-temperature range accepted by UsdLux (K); values are clamped to it.
 COLOR_TEMPERATURE_RANGE_K = (1000.0, 10000.0)
 
+#: Largest coordinate or transform entry (m) accepted for a light, mesh or camera
+#: (issue 21, tools/fuzz.py): beyond it float32 maths on the GPU overflows (squared
+#: distances past 3.4e38) and the prim is a data error (1e15 m is ~6700 au).
+MAX_COORDINATE_M = 1.0e15
+
 # --- Light buffer / FoV list (render) --------------------------------------------------
 
 #: Index bits in a packed 32-bit STB sample (see STB "Sample packing" below). The

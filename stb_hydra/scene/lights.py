@@ -194,6 +194,13 @@ def _finite(x: Any) -> bool:
         return False
 
 
+def _number(x: Any) -> float:
+    """``x`` as a float; NaN when it is not a number (a wrong-typed attribute)."""
+    if isinstance(x, (int, float)):
+        return float(x)
+    return math.nan
+
+
 def _vec3(v: Any) -> np.ndarray:
     return np.array([float(v[0]), float(v[1]), float(v[2])], dtype=np.float64)
 
@@ -384,7 +391,7 @@ def read_light(
 
 
 def _warn(lp: LightPrim, ctx: LightReadContext, msg: str) -> None:
-    text = f"light <{lp.path}>: {msg}"
+    text = " ".join(f"light <{lp.path}>: {msg}".split())  # one line, whatever the value
     lp.warnings.append(text)
     ctx.warn(text)
 
@@ -431,9 +438,14 @@ def _read_light_into(
     """
     a = _Attrs(prim, time, names)
     set_transform(lp, world)
-    if not math.isfinite(float(np.abs(world).sum())):  # one reduction: hot path
+    if not float(np.abs(world).sum()) <= limits.MAX_COORDINATE_M:  # one reduction: hot path
         lp.enabled = False
-        _warn(lp, ctx, "non-finite transform; light disabled")
+        lp.flux, lp.intensity, lp.peak_intensity = 0.0, np.zeros(3), 0.0
+        _warn(
+            lp,
+            ctx,
+            f"transform not finite or beyond {limits.MAX_COORDINATE_M:.0e} m; light disabled",
+        )
         return
     radiance, normalize, ok = _read_radiance(lp, a, ctx)
     size_ok = _read_size(lp, a, ctx, world)
@@ -454,8 +466,8 @@ def _read_light_into(
     ok &= _check_peak_intensity(lp, ctx)
     lp.valid = bool(ok)
     lp.enabled = bool(ok and visible)
-    if not ok:
-        lp.flux = 0.0  # a rejected light emits nothing (and 1e38 cd must not overflow float32)
+    if not ok:  # a rejected light emits nothing (and 1e38 cd must not overflow float32)
+        lp.flux, lp.intensity, lp.peak_intensity = 0.0, np.zeros(3), 0.0
 
 
 def _size_text(lp: LightPrim) -> str:
@@ -482,8 +494,8 @@ def _read_radiance(
     exposure = a.get("inputs:exposure", 0.0)
     color = a.get("inputs:color", (1.0, 1.0, 1.0))
     normalize = bool(a.get("inputs:normalize", False))
-    lp.diffuse = float(a.get("inputs:diffuse", 1.0))
-    lp.specular = float(a.get("inputs:specular", 1.0))
+    lp.diffuse = _number(a.get("inputs:diffuse", 1.0))
+    lp.specular = _number(a.get("inputs:specular", 1.0))
     ok = _check_emission_inputs(lp, ctx, intensity, exposure, color)
     rgb = _light_rgb(lp, a, ctx, color, ok)
     scalar = float(intensity) * 2.0 ** float(exposure) if ok else 0.0
@@ -510,7 +522,7 @@ def _check_emission_inputs(
         ok = False
     for name, val in (("diffuse", lp.diffuse), ("specular", lp.specular)):
         if not math.isfinite(val):
-            _warn(lp, ctx, f"inputs:{name} {val} is not finite; light disabled")
+            _warn(lp, ctx, f"inputs:{name} {val} is not a finite number; light disabled")
             ok = False
     return ok
 
@@ -710,6 +722,9 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     if lp.shadow_distance > 0 and lp.shadow_falloff > lp.shadow_distance:
         lp.shadow_falloff = lp.shadow_distance
     lp.shadow_falloff_gamma = float(sg) if _finite(sg) and sg > 0 else 1.0
+    for name, v in (("color", sc), ("distance", sd), ("falloff", sf), ("falloffGamma", sg)):
+        if not _finite(v):  # non-finite or not a number (found by tools/fuzz.py)
+            _warn(lp, ctx, f"inputs:shadow:{name} {v} is not a finite number; ignored")
     upd = a.get("stb:shadow:update", prims.SHADOW_STATIC)
     if upd not in (prims.SHADOW_STATIC, prims.SHADOW_DYNAMIC):
         _warn(lp, ctx, f"stb:shadow:update '{upd}' is not static|dynamic; using static")
@@ -869,8 +884,10 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         import OpenImageIO as oiio
 
         buf = oiio.ImageBuf(resolved)
-        if buf.has_error:
-            raise OSError(buf.geterror())
+        # Read it all now: a lazily read (image cache) buffer of a truncated file
+        # resizes for minutes, every missing tile retried (found by tools/fuzz.py).
+        if buf.has_error or not buf.read(0, 0, True):
+            raise OSError(buf.geterror() or "cannot read it")
         # Average on a reduced copy: exact enough for a uniform ambient term.
         spec = buf.spec()
         w = max(1, min(spec.width, 256))
