@@ -73,7 +73,10 @@ def test_truncated_dome_texture_is_a_warning_not_a_hang(gl_ctx, tmp_path, testda
     minutes (every missing tile retried); now read at once: one warning, white dome."""
     exr = tmp_path / "sky.exr"
     exr.write_bytes((testdata / "usd/luxtest/dome_grid_2k.exr").read_bytes()[:15000])
-    dome = f'def DomeLight "Sky"\n{{\n    float inputs:intensity = 1\n    asset inputs:texture:file = @{exr}@\n}}\n'
+    dome = (
+        'def DomeLight "Sky"\n{\n    float inputs:intensity = 1\n'
+        f"    asset inputs:texture:file = @{exr}@\n}}\n"
+    )
     t0 = time.perf_counter()
     ws, imgs = _render_all(gl_ctx, _scene(extra=dome))
     assert time.perf_counter() - t0 < 30.0
@@ -90,7 +93,8 @@ def test_truncated_dome_texture_is_a_warning_not_a_hang(gl_ctx, tmp_path, testda
         "float horizontalAperture = nan",
         "float verticalAperture = -1",
         'double3 xformOp:scale = (0, 0, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]',
-        'double3 xformOp:translate = (nan, 0, 0)\n    uniform token[] xformOpOrder = ["xformOp:translate"]',
+        "double3 xformOp:translate = (nan, 0, 0)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]',
     ],
 )
 def test_bad_camera_is_reported_and_replaced(gl_ctx, attr):
