@@ -237,6 +237,20 @@ VALIDATE_UNITS_RTOL = 0.01
 #: Wall-clock limit (s) for one asset in a worker before it is killed and reported.
 VALIDATE_ASSET_TIMEOUT_S = 300.0
 
+# Hostile libraries (issue 21, item 7): per-asset bounds of `stb validate`.
+#: Largest layer file opened (bytes). Real prefab layers are KB-MB; a 1 GB usdc of a
+#: prefab is a mistake or an attack (USD maps and decodes it whole). Larger layers are
+#: reported ``unreadable`` without being opened.
+VALIDATE_LAYER_MAX_BYTES = 512 * 1024 * 1024
+#: Most layers scanned for one asset (its sublayers, references and payloads, chained):
+#: a deeply nested or combinatorial reference graph is reported instead of composed.
+VALIDATE_MAX_LAYERS = 1000
+#: Address space of one validate worker (bytes, RLIMIT_AS): an asset that makes USD
+#: allocate past it ends that worker (a ``crash`` finding), not the machine. 16 GiB
+#: leaves room for Python, USD, OCIO and a GL context (--thumbnails; llvmpipe maps
+#: a few GiB of virtual memory).
+VALIDATE_WORKER_MAX_BYTES = 16 * 1024**3
+
 # --- Baselines --------------------------------------------------------------------------
 # The exact many-light baselines `tiled`, `clustered`, `lighttree` (docs/BASELINES.md).
 
