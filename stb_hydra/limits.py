@@ -47,6 +47,10 @@ COLOR_TEMPERATURE_RANGE_K = (1000.0, 10000.0)
 #: distances past 3.4e38) and the prim is a data error (1e15 m is ~6700 au).
 MAX_COORDINATE_M = 1.0e15
 
+#: Largest camera aperture offset accepted, in apertures (a lens shifted 1000 frame
+#: widths): past it the frustum's edges cancel in float (1e30 divided by zero).
+CAMERA_MAX_APERTURE_OFFSET = 1000.0
+
 # --- Light buffer / FoV list (render) --------------------------------------------------
 
 #: Index bits in a packed 32-bit STB sample (see STB "Sample packing" below). The

@@ -92,6 +92,7 @@ def test_truncated_dome_texture_is_a_warning_not_a_hang(gl_ctx, tmp_path, testda
         "float focalLength = inf",
         "float horizontalAperture = nan",
         "float verticalAperture = -1",
+        "float horizontalApertureOffset = 1e30",
         'double3 xformOp:scale = (0, 0, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]',
         "double3 xformOp:translate = (nan, 0, 0)\n"
         '    uniform token[] xformOpOrder = ["xformOp:translate"]',
@@ -113,6 +114,8 @@ def test_bad_camera_is_reported_and_replaced(gl_ctx, attr):
         "float inputs:shadow:falloffGamma = inf",
         'string inputs:shadow:distance = "far"',
         "color3f inputs:shadow:color = (nan, 0, 0)",
+        "color3f inputs:shaping:focusTint = (1, inf, 1)",
+        "int[] inputs:color = [1, 2, 3]",
     ],
 )
 def test_bad_light_inputs_are_one_line_naming_the_light(gl_ctx, attr):

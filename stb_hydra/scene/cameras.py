@@ -62,12 +62,14 @@ def read_camera(
         if value != 0.0 and ok != value:  # 0 is USD's "unset" here: default silently
             problems.append(f"{name} {value:g} is not a finite positive number; using {default:g}")
         setattr(cp, _FIELDS[name], ok)
-    for name, value in (
-        ("horizontalApertureOffset", float(gc.horizontalApertureOffset)),
-        ("verticalApertureOffset", float(gc.verticalApertureOffset)),
+    for name, value, aperture in (
+        ("horizontalApertureOffset", float(gc.horizontalApertureOffset), cp.horizontal_aperture),
+        ("verticalApertureOffset", float(gc.verticalApertureOffset), cp.vertical_aperture),
     ):
-        if not math.isfinite(value):
-            problems.append(f"{name} {value:g} is not finite; using 0")
+        # past 1000 apertures off axis the frustum's edges cancel in float (1e30 divided
+        # by zero in the shadow fit: found by tools/fuzz.py)
+        if not abs(value) <= limits.CAMERA_MAX_APERTURE_OFFSET * aperture:
+            problems.append(f"{name} {value:g} is not finite or huge; using 0")
             value = 0.0
         setattr(cp, _FIELDS[name], value)
     rng = gc.clippingRange

@@ -32,7 +32,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from pxr import Sdf, Usd, UsdLux
+from pxr import Gf, Sdf, Usd, UsdLux
 
 from .. import limits
 from ..color import LUMINANCE_REC709
@@ -192,6 +192,12 @@ def _finite(x: Any) -> bool:
         return all(math.isfinite(float(x[i])) for i in range(len(x)))
     except (TypeError, ValueError):
         return False
+
+
+def _colour(x: Any) -> bool:
+    """A finite RGB triple (a Gf vector or a tuple): not a string, not an int array
+    (wrong-typed attributes, found by tools/fuzz.py)."""
+    return isinstance(x, (Gf.Vec3f, Gf.Vec3d, Gf.Vec3h, tuple)) and len(x) == 3 and _finite(x)
 
 
 def _number(x: Any) -> float:
@@ -517,8 +523,8 @@ def _check_emission_inputs(
             f"exposure {exposure} outside +-{limits.MAX_ABS_EXPOSURE:g} stops; light disabled",
         )
         ok = False
-    if not _finite(color):
-        _warn(lp, ctx, f"colour {tuple(color)} is not finite; light disabled")
+    if not _colour(color):
+        _warn(lp, ctx, f"inputs:color {color} is not a finite colour (3 numbers); light disabled")
         ok = False
     for name, val in (("diffuse", lp.diffuse), ("specular", lp.specular)):
         if not math.isfinite(val):
@@ -530,7 +536,7 @@ def _check_emission_inputs(
 def _light_rgb(lp: LightPrim, a: _Attrs, ctx: LightReadContext, color: Any, ok: bool) -> np.ndarray:
     """Linear RGB factor: ``inputs:color`` (negatives clamped) times the blackbody colour
     when ``enableColorTemperature`` is on; zero for a non-finite colour."""
-    rgb = _vec3(color) if _finite(color) else np.zeros(3)
+    rgb = _vec3(color) if _colour(color) else np.zeros(3)
     if ok and min(float(color[0]), float(color[1]), float(color[2])) < 0:
         _warn(lp, ctx, f"negative colour {tuple(rgb)} clamped to 0")
         rgb = np.maximum(rgb, 0.0)
@@ -650,7 +656,9 @@ def _read_shaping(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContex
     lp.cone_angle = float(ang)
     lp.cone_softness = float(min(max(soft, 0.0), 1.0))
     lp.focus = float(max(focus, 0.0))
-    lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
+    if not _colour(tint):
+        _warn(lp, ctx, f"inputs:shaping:focusTint {tint} is not a finite colour; using black")
+    lp.focus_tint = _vec3(tint) if _colour(tint) else np.zeros(3)
     _read_ies(lp, a, ctx)
     if lp.ies_file is not None and lp.has_cone:
         # STB_SPEC: the cone does not clip the IES profile (Arnold test_1316: IES wins).
