@@ -93,6 +93,7 @@ def test_truncated_dome_texture_is_a_warning_not_a_hang(gl_ctx, tmp_path, testda
         "float horizontalAperture = nan",
         "float verticalAperture = -1",
         "float horizontalApertureOffset = 1e30",
+        "float verticalAperture = 3.4e38",
         'double3 xformOp:scale = (0, 0, 1)\n    uniform token[] xformOpOrder = ["xformOp:scale"]',
         "double3 xformOp:translate = (nan, 0, 0)\n"
         '    uniform token[] xformOpOrder = ["xformOp:translate"]',

@@ -126,9 +126,7 @@ def test_luxtest_sphere_light_cone(gl_ctx, testdata, frame):
     soft = min(max(prim.GetAttribute("inputs:shaping:cone:softness").Get(t) or 0.0, 0.0), 1.0)
     focus = prim.GetAttribute("inputs:shaping:focus").Get(t) or 0.0
     assert focus == 0.0 and cutoff < 180.0
-    axis = (
-        UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t).TransformDir(Gf.Vec3d(0, 0, -1))
-    )
+    axis = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t).TransformDir(Gf.Vec3d(0, 0, -1))
     axis = np.array(axis.GetNormalized())
 
     img = stb_hydra.render(path, width=N, height=N, time=frame, lighting="reference")

@@ -22,8 +22,9 @@ _FIELDS = {
 
 
 def _positive(value: float, fallback: float) -> float:
-    """``value`` if finite and > 0, else ``fallback``."""
-    return value if math.isfinite(value) and value > 0 else fallback
+    """``value`` if > 0 and at most ``limits.MAX_COORDINATE_M`` (float32-safe), else
+    ``fallback``."""
+    return value if 0 < value <= limits.MAX_COORDINATE_M else fallback
 
 
 def read_camera(
@@ -60,7 +61,7 @@ def read_camera(
     ):
         ok = _positive(value, default)
         if value != 0.0 and ok != value:  # 0 is USD's "unset" here: default silently
-            problems.append(f"{name} {value:g} is not a finite positive number; using {default:g}")
+            problems.append(f"{name} {value:g} is not a positive number; using {default:g}")
         setattr(cp, _FIELDS[name], ok)
     for name, value, aperture in (
         ("horizontalApertureOffset", float(gc.horizontalApertureOffset), cp.horizontal_aperture),
