@@ -117,6 +117,7 @@ def test_bad_camera_is_reported_and_replaced(gl_ctx, attr):
         "color3f inputs:shadow:color = (nan, 0, 0)",
         "color3f inputs:shaping:focusTint = (1, inf, 1)",
         "int[] inputs:color = [1, 2, 3]",
+        "int[] inputs:shadow:color = [1, 2, 3]",
     ],
 )
 def test_bad_light_inputs_are_one_line_naming_the_light(gl_ctx, attr):

@@ -721,7 +721,7 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
         sg = a.get("inputs:shadow:falloffGamma", 1.0)
     else:
         lp.shadow_enable, sc, sd, sf, sg = True, (0.0, 0.0, 0.0), -1.0, -1.0, 1.0
-    if _finite(sc):
+    if _colour(sc):
         lp.shadow_color = np.array([min(max(float(sc[i]), 0.0), 1.0) for i in range(3)])
     else:
         lp.shadow_color = np.zeros(3)
@@ -730,7 +730,9 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     if lp.shadow_distance > 0 and lp.shadow_falloff > lp.shadow_distance:
         lp.shadow_falloff = lp.shadow_distance
     lp.shadow_falloff_gamma = float(sg) if _finite(sg) and sg > 0 else 1.0
-    for name, v in (("color", sc), ("distance", sd), ("falloff", sf), ("falloffGamma", sg)):
+    if not _colour(sc):  # an int[] or a string is not a colour (found by tools/fuzz.py)
+        _warn(lp, ctx, f"inputs:shadow:color {sc} is not a finite colour; using black")
+    for name, v in (("distance", sd), ("falloff", sf), ("falloffGamma", sg)):
         if not _finite(v):  # non-finite or not a number (found by tools/fuzz.py)
             _warn(lp, ctx, f"inputs:shadow:{name} {v} is not a finite number; ignored")
     upd = a.get("stb:shadow:update", prims.SHADOW_STATIC)
