@@ -88,6 +88,11 @@ IES_MAX_FILE_BYTES = 16 * 1024 * 1024
 #: Most vertical / horizontal angles per axis: 0.1-degree steps over 360 degrees is 3601.
 IES_MAX_ANGLES = 4096
 
+#: Smallest step (degrees) between successive IES angles. Files give angles with at
+#: most 4 decimals; a 1e-320 degree step (subnormal) divided interpolation weights to
+#: NaN (tools/fuzz.py, docs/RELIABILITY.md).
+IES_MIN_ANGLE_STEP_DEG = 1.0e-6
+
 #: Most candela values (n_vertical * n_horizontal): 8 MB of float64, ~a 0.25-degree
 #: full-sphere grid; caps memory before a hostile header can make us allocate.
 IES_MAX_CANDELA_VALUES = 1_000_000

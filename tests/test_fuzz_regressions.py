@@ -164,6 +164,24 @@ def test_overflowing_light_is_disabled_without_overflow(gl_ctx, extra):
     assert _naming(ws, "light </Far>", "disabled"), ws
 
 
+def test_ies_subnormal_angle_step_is_rejected(testdata):
+    """Horizontal angles 0, 1e-320, 45, ...: strictly increasing, so accepted, and the
+    1e-320 degree step divided the interpolation weights to a NaN flux (tools/fuzz.py
+    IES seed 1, input 29859). Now an IesError naming the file, one line."""
+    from stb_hydra.scene.ies import IesError, parse_ies
+
+    text = (
+        "IESNA:LM-63-1995\nTILT=NONE\n1 1000 1 3 3 1 1 0 0 0\n1 1 100\n"
+        "0 45 90\n0 1e-320 90\n100 80 0\n100 80 0\n100 80 0\n"
+    )
+    with pytest.raises(IesError) as e:
+        parse_ies(text, name="sub.ies")
+    msg = str(e.value)
+    assert msg.startswith("sub.ies: ") and "\n" not in msg and "horizontal angles" in msg
+    ok = parse_ies(text.replace("1e-320", "45"), name="ok.ies")  # the control parses
+    assert np.isfinite(ok.flux()) and ok.flux() > 0
+
+
 def test_fuzz_tool_smoke(gl_ctx):
     """tools/fuzz.py end to end on a few inputs (the real run: docs/RELIABILITY.md)."""
     from tools import fuzz
