@@ -47,10 +47,10 @@ import numpy.typing as npt
 
 from stb_hydra.limits import (
     IES_MAX_ANGLES,
-    IES_MIN_ANGLE_STEP_DEG,
     IES_MAX_CANDELA_VALUES,
     IES_MAX_FILE_BYTES,
     IES_MAX_TILT_PAIRS,
+    IES_MIN_ANGLE_STEP_DEG,
     IES_TABLE_PHI,
     IES_TABLE_THETA,
     MAX_INTENSITY_CD,
