@@ -42,6 +42,15 @@ MIN_LIGHT_DISTANCE_M = 1.0e-3
 #: Colour-temperature range accepted by UsdLux (K); values are clamped to it.
 COLOR_TEMPERATURE_RANGE_K = (1000.0, 10000.0)
 
+#: Largest coordinate or transform entry (m) accepted for a light, mesh or camera
+#: (issue 21, tools/fuzz.py): beyond it float32 maths on the GPU overflows (squared
+#: distances past 3.4e38) and the prim is a data error (1e15 m is ~6700 au).
+MAX_COORDINATE_M = 1.0e15
+
+#: Largest camera aperture offset accepted, in apertures (a lens shifted 1000 frame
+#: widths): past it the frustum's edges cancel in float (1e30 divided by zero).
+CAMERA_MAX_APERTURE_OFFSET = 1000.0
+
 # --- Light buffer / FoV list (render) --------------------------------------------------
 
 #: Index bits in a packed 32-bit STB sample (see STB "Sample packing" below). The
@@ -78,6 +87,11 @@ IES_MAX_FILE_BYTES = 16 * 1024 * 1024
 
 #: Most vertical / horizontal angles per axis: 0.1-degree steps over 360 degrees is 3601.
 IES_MAX_ANGLES = 4096
+
+#: Smallest step (degrees) between successive IES angles. Files give angles with at
+#: most 4 decimals; a 1e-320 degree step (subnormal) divided interpolation weights to
+#: NaN (tools/fuzz.py, docs/RELIABILITY.md).
+IES_MIN_ANGLE_STEP_DEG = 1.0e-6
 
 #: Most candela values (n_vertical * n_horizontal): 8 MB of float64, ~a 0.25-degree
 #: full-sphere grid; caps memory before a hostile header can make us allocate.
@@ -240,6 +254,20 @@ VALIDATE_UNITS_RTOL = 0.01
 
 #: Wall-clock limit (s) for one asset in a worker before it is killed and reported.
 VALIDATE_ASSET_TIMEOUT_S = 300.0
+
+# Hostile libraries (issue 21, item 7): per-asset bounds of `stb validate`.
+#: Largest layer file opened (bytes). Real prefab layers are KB-MB; a 1 GB usdc of a
+#: prefab is a mistake or an attack (USD maps and decodes it whole). Larger layers are
+#: reported ``unreadable`` without being opened.
+VALIDATE_LAYER_MAX_BYTES = 512 * 1024 * 1024
+#: Most layers scanned for one asset (its sublayers, references and payloads, chained):
+#: a deeply nested or combinatorial reference graph is reported instead of composed.
+VALIDATE_MAX_LAYERS = 1000
+#: Address space of one validate worker (bytes, RLIMIT_AS): an asset that makes USD
+#: allocate past it ends that worker (a ``crash`` finding), not the machine. 16 GiB
+#: leaves room for Python, USD, OCIO and a GL context (--thumbnails; llvmpipe maps
+#: a few GiB of virtual memory).
+VALIDATE_WORKER_MAX_BYTES = 16 * 1024**3
 
 # --- Baselines --------------------------------------------------------------------------
 # The exact many-light baselines `tiled`, `clustered`, `lighttree` (docs/BASELINES.md).

@@ -69,3 +69,28 @@ def test_tradeoff_csv_failing_midway(tmp_path):
     with pytest.raises(RuntimeError):
         write_csv(rows, p, ["label", "v"])
     _intact(tmp_path, p)
+
+
+def test_bench_outputs_failing_midway(tmp_path):
+    """``stb bench``'s JSON and CSV go through ``io.files.write_text_atomic`` (they were
+    written through a private helper that left its temporary file on a non-OS error)."""
+    from stb_hydra.apps.bench import write_text
+
+    for name in ("bench.json", "bench.csv"):
+        p = _old(tmp_path, name)
+        with pytest.raises(UnicodeEncodeError):
+            write_text(str(p), BAD_TEXT)
+        assert p.read_text() == OLD and os.stat(p).st_mode & 0o777 == 0o640
+        write_text(str(p), "new\n")
+        assert p.read_text() == "new\n" and os.stat(p).st_mode & 0o777 == 0o640
+        p.unlink()
+    assert list(tmp_path.iterdir()) == [], "a temporary file was left"
+
+
+def test_bench_output_in_a_missing_directory_is_one_line(tmp_path):
+    from stb_hydra.apps.bench import write_text
+    from stb_hydra.apps.common import CliError
+
+    with pytest.raises(CliError) as e:
+        write_text(str(tmp_path / "no" / "bench.json"), "{}")
+    assert "bench.json" in str(e.value) and "\n" not in str(e.value)

@@ -361,9 +361,9 @@ def _run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
     )
     if out_json:
-        _write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
+        write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
     if out_csv:
-        _write_text(out_csv, records_csv(records))
+        write_text(out_csv, records_csv(records))
     if out_plot:
         plot_records(records, out_plot)
     if not args.quiet:
@@ -497,16 +497,15 @@ def bench_one(
 # --- outputs -----------------------------------------------------------------------------
 
 
-def _write_text(path: str, text: str) -> None:
-    tmp = f"{path}.tmp-{os.getpid()}"
+def write_text(path: str, text: str) -> None:
+    """``text`` to ``path`` atomically (``io.files.write_text_atomic``: a temporary file
+    in the same directory, removed on any failure, then a rename)."""
+    from ..io.files import FileWriteError, write_text_atomic
+
     try:
-        with open(tmp, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except OSError as exc:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise CliError(f"cannot write '{path}': {exc.strerror or exc}") from None
+        write_text_atomic(path, text)
+    except FileWriteError as exc:
+        raise CliError(str(exc)) from None
 
 
 CSV_FIELDS = (
@@ -612,10 +611,12 @@ def plot_records(records: list[dict[str, Any]], path: str) -> None:
     try:
         fig.savefig(tmp, dpi=110)
         os.replace(tmp, path)
-    except OSError as exc:
+    except BaseException as exc:  # no temporary file left, whatever failed
         if os.path.exists(tmp):
             os.unlink(tmp)
-        raise CliError(f"cannot write '{path}': {exc.strerror or exc}") from None
+        if isinstance(exc, OSError):
+            raise CliError(f"cannot write '{path}': {exc.strerror or exc}") from None
+        raise
     finally:
         plt.close(fig)
 

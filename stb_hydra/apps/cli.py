@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
+from typing import Any
 
 VERBS = ("render", "inspect", "bench", "validate", "tradeoff", "preview", "bake")
 
@@ -51,6 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     rep = Reporter(f"stb {args.verb}", quiet=bool(getattr(args, "quiet", False)))
     args.reporter = rep
+    old = _catch_sigterm()
     try:
         with rep:
             code = int(args.func(args) or 0)
@@ -59,6 +63,28 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("stb: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("stb: terminated (SIGTERM); finished outputs are complete", file=sys.stderr)
+        return 128 + signal.SIGTERM
+    finally:
+        if old is not None:
+            signal.signal(signal.SIGTERM, old)
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived: unwinds like KeyboardInterrupt, so every atomic writer removes
+    its temporary file and frames already written stay complete (issue 21, item 7)."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def _catch_sigterm() -> Any:
+    """Turn SIGTERM into :class:`Terminated` (main thread only); the old handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _raise_terminated)
 
 
 if __name__ == "__main__":

@@ -46,7 +46,11 @@ def collect_inputs(paths: list[str], library_root: str | None = None) -> list[tu
                 dirnames.sort()
                 for name in sorted(files):
                     if name.lower().endswith(_EXTS):
-                        out.setdefault(str(Path(dirpath, name).resolve()), root)
+                        # a symlink out of the root stays a link: the scan reports it
+                        # and never opens its target
+                        f = Path(dirpath, name).resolve()
+                        inside = os.path.commonpath([str(f), root]) == root
+                        out.setdefault(str(f if inside else Path(dirpath, name).absolute()), root)
         elif p.is_file():
             if not p.name.lower().endswith(_EXTS):
                 raise CliError(f"'{arg}' is not a USD file ({', '.join(_EXTS)})")

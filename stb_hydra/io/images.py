@@ -287,6 +287,30 @@ def _default_pipeline(ocio_env: str) -> ColorPipeline:
     return ColorPipeline()
 
 
+def _check_written(tmp: Path, path: Path) -> None:
+    """Flush ``tmp`` to the disk and read it back whole before it replaces ``path``.
+
+    OpenEXR drops write errors: on a full file system (ENOSPC, or EFBIG past
+    RLIMIT_FSIZE) ``write_image`` and ``close`` succeeded and a truncated frame was
+    renamed into place with exit status 0 (issue 21, tests/test_faults.py)."""
+    fd = os.open(tmp, os.O_RDONLY)
+    try:
+        os.fsync(fd)  # reports deferred write-back errors (ENOSPC on delayed allocation)
+    finally:
+        os.close(fd)
+    inp = oiio.ImageInput.open(str(tmp))
+    if inp is None:
+        raise ImageWriteError(path, f"the written file does not read back: {oiio.geterror()}")
+    try:
+        px = inp.read_image()
+        err = inp.geterror() if px is None or inp.has_error else ""
+    finally:
+        inp.close()
+    if px is None or err:
+        why = " ".join((err or "read failed").split())
+        raise ImageWriteError(path, f"the written file is incomplete (disk full?): {why}")
+
+
 def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
     directory = path.parent
     try:
@@ -310,6 +334,7 @@ def _atomic_write(path: Path, spec: oiio.ImageSpec, pixels: np.ndarray) -> None:
             closed = out.close()
         if not closed:
             raise ImageWriteError(path, out.geterror() or "OIIO close failed")
+        _check_written(tmp, path)
         os.chmod(tmp, new_file_mode(path))  # mkstemp creates 0600
         os.replace(tmp, path)
     except BaseException as exc:

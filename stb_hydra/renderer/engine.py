@@ -278,11 +278,10 @@ class Engine:
         with timed(self.timings, "commit", None, False):
             self.delegate.commit_resources()
         for w in si.warnings + self.delegate.warnings:
-            if w not in self._seen_warnings:
-                self._seen_warnings.add(w)
-                self.warnings.append(w)
+            self._warn_once(w)
 
     def _warn_once(self, msg: str) -> None:
+        msg = " ".join(msg.split())  # every warning is one line, whatever a value printed
         if msg not in self._seen_warnings:
             self._seen_warnings.add(msg)
             self.warnings.append(msg)

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits as D
 
@@ -111,9 +112,11 @@ class MeshRprim(RenderPrim):
                 bits |= D.DirtyMaterialId | D.DirtyStbFlags
             self.mesh = m
         if bits & D.DirtyTransform:
-            m.transform = ds.world_matrix() if ds.entry.instancer is None else np.eye(4)
+            xf = ds.world_matrix() if ds.entry.instancer is None else np.eye(4)
+            m.transform = self._finite_xforms(xf[None], "transform")[0]
         if bits & (D.DirtyInstancer | D.DirtyTransform):
-            m.instance_transforms = ds.instance_transforms()
+            inst = ds.instance_transforms()
+            m.instance_transforms = None if inst is None else self._finite_xforms(inst, "instance")
         if bits & D.DirtyVisibility:
             m.visible = ds.visible()
         if bits & D.DirtyMaterialId:
@@ -121,6 +124,24 @@ class MeshRprim(RenderPrim):
         if bits & D.DirtyStbFlags or bits & D.DirtyTransform:
             m.dynamic = ds.dynamic()
         self.pending_bits |= bits
+
+    def _finite_xforms(self, xfs: np.ndarray, what: str) -> np.ndarray:
+        """``xfs`` (n, 4, 4) with each non-finite matrix (or one with an entry beyond
+        ``limits.MAX_COORDINATE_M``) collapsed to a point (the mesh or instance draws
+        nothing), warned once (NaN/inf/overflow reached the rasteriser and the scene
+        bounds otherwise: found by tools/fuzz.py)."""
+        bad = ~(np.abs(xfs) <= limits.MAX_COORDINATE_M).all(axis=(1, 2))  # NaN fails too
+        if not bad.any():
+            return xfs
+        n = int(bad.sum())
+        self.delegate.warn_once(
+            f"nonfinite-{what}:{self.path}",
+            f"mesh <{self.path}>: {n} {what} matri{'ces' if n > 1 else 'x'} not finite or "
+            f"beyond {limits.MAX_COORDINATE_M:.0e} m; not drawn",
+        )
+        out = np.array(xfs, dtype=np.float64, copy=True)
+        out[bad] = np.diag([0.0, 0.0, 0.0, 1.0])
+        return out
 
     def finalize(self) -> None:
         self.delegate.release_mesh(self.path)

@@ -8,35 +8,81 @@ from collections.abc import Callable
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from .. import limits
 from .prims import CameraPrim
+
+#: UsdGeom.Camera attribute -> CameraPrim field.
+_FIELDS = {
+    "focalLength": "focal_length",
+    "horizontalAperture": "horizontal_aperture",
+    "verticalAperture": "vertical_aperture",
+    "horizontalApertureOffset": "horizontal_aperture_offset",
+    "verticalApertureOffset": "vertical_aperture_offset",
+}
+
+
+def _positive(value: float, fallback: float) -> float:
+    """``value`` if > 0 and at most ``limits.MAX_COORDINATE_M`` (float32-safe), else
+    ``fallback``."""
+    return value if 0 < value <= limits.MAX_COORDINATE_M else fallback
 
 
 def read_camera(
-    prim: Usd.Prim, time: Usd.TimeCode, world: np.ndarray, meters_per_unit: float
+    prim: Usd.Prim,
+    time: Usd.TimeCode,
+    world: np.ndarray,
+    meters_per_unit: float,
+    warn: Callable[[str], None] | None = None,
 ) -> CameraPrim:
     """``world`` is the camera's local-to-render matrix. Clipping distances are
     converted from stage units to metres (the transform's scale is ignored for
-    them, as in UsdGeom)."""
+    them, as in UsdGeom). Unusable values (a non-finite or singular transform, a
+    focal length or aperture that is not a finite positive number, a bad clipping
+    range) are replaced by defaults, each with a one-line ``warn``."""
     cam = UsdGeom.Camera(prim)
     gc = cam.GetCamera(time)
     cp = CameraPrim(path=str(prim.GetPath()))
+    problems: list[str] = []
     m = np.asarray(world, dtype=np.float64).copy()
     # Remove scale from the camera frame: keep orthonormal axes.
     for i in range(3):
         n = np.linalg.norm(m[i, :3])
         if n > 1e-12 and math.isfinite(n):
             m[i, :3] /= n
+    if not np.all(np.abs(m) <= limits.MAX_COORDINATE_M) or abs(np.linalg.det(m[:3, :3])) < 1e-6:
+        problems.append("transform is not finite, huge or singular; using the identity")
+        m = np.eye(4)
     cp.transform = m
     cp.projection = "orthographic" if gc.projection == gc.Orthographic else "perspective"
-    cp.focal_length = float(gc.focalLength) or 50.0
-    cp.horizontal_aperture = float(gc.horizontalAperture) or 20.955
-    cp.vertical_aperture = float(gc.verticalAperture) or 15.2908
-    cp.horizontal_aperture_offset = float(gc.horizontalApertureOffset)
-    cp.vertical_aperture_offset = float(gc.verticalApertureOffset)
+    for name, value, default in (
+        ("focalLength", float(gc.focalLength), 50.0),
+        ("horizontalAperture", float(gc.horizontalAperture), 20.955),
+        ("verticalAperture", float(gc.verticalAperture), 15.2908),
+    ):
+        ok = _positive(value, default)
+        if value != 0.0 and ok != value:  # 0 is USD's "unset" here: default silently
+            problems.append(f"{name} {value:g} is not a positive number; using {default:g}")
+        setattr(cp, _FIELDS[name], ok)
+    for name, value, aperture in (
+        ("horizontalApertureOffset", float(gc.horizontalApertureOffset), cp.horizontal_aperture),
+        ("verticalApertureOffset", float(gc.verticalApertureOffset), cp.vertical_aperture),
+    ):
+        # past 1000 apertures off axis the frustum's edges cancel in float (1e30 divided
+        # by zero in the shadow fit: found by tools/fuzz.py)
+        if not abs(value) <= limits.CAMERA_MAX_APERTURE_OFFSET * aperture:
+            problems.append(f"{name} {value:g} is not finite or huge; using 0")
+            value = 0.0
+        setattr(cp, _FIELDS[name], value)
     rng = gc.clippingRange
     near, far = float(rng.min) * meters_per_unit, float(rng.max) * meters_per_unit
     if not (math.isfinite(near) and math.isfinite(far)) or near <= 0 or far <= near:
+        problems.append(
+            f"clippingRange ({rng.min:g}, {rng.max:g}) is unusable; using (0.1, 1000) m"
+        )
         near, far = 0.1, 1000.0
+    if warn is not None:
+        for p in problems:
+            warn(f"camera <{cp.path}>: {p}")
     cp.near, cp.far = near, far
     planes = [np.asarray(p, dtype=np.float64) for p in gc.clippingPlanes]
     if planes:

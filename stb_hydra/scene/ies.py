@@ -50,6 +50,7 @@ from stb_hydra.limits import (
     IES_MAX_CANDELA_VALUES,
     IES_MAX_FILE_BYTES,
     IES_MAX_TILT_PAIRS,
+    IES_MIN_ANGLE_STEP_DEG,
     IES_TABLE_PHI,
     IES_TABLE_THETA,
     MAX_INTENSITY_CD,
@@ -381,9 +382,15 @@ def _detect_version(line: str) -> tuple[str | None, str | None]:
 
 
 def _check_increasing(t: _Tokens, a: np.ndarray, what: str) -> None:
-    if a.size > 1 and not np.all(np.diff(a) > 0.0):
-        k = int(np.argmin(np.diff(a) > 0.0))
-        raise t.error(f"{what} not strictly increasing at #{k + 1} ({a[k]:g} -> {a[k + 1]:g})")
+    """Strictly increasing by at least ``IES_MIN_ANGLE_STEP_DEG``: a step of 1e-320
+    degrees passed ``> 0`` and divided to NaN flux (found by tools/fuzz.py)."""
+    step = np.diff(a)
+    if a.size > 1 and not np.all(step >= IES_MIN_ANGLE_STEP_DEG):
+        k = int(np.argmin(step >= IES_MIN_ANGLE_STEP_DEG))
+        raise t.error(
+            f"{what} not strictly increasing by >= {IES_MIN_ANGLE_STEP_DEG:g} degrees at "
+            f"#{k + 1} ({a[k]:g} -> {a[k + 1]:g})"
+        )
 
 
 def _check_range(t: _Tokens, a: np.ndarray, lo: float, hi: float, what: str) -> None:

@@ -32,7 +32,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from pxr import Sdf, Usd, UsdLux
+from pxr import Gf, Sdf, Usd, UsdLux
 
 from .. import limits
 from ..color import LUMINANCE_REC709
@@ -192,6 +192,19 @@ def _finite(x: Any) -> bool:
         return all(math.isfinite(float(x[i])) for i in range(len(x)))
     except (TypeError, ValueError):
         return False
+
+
+def _colour(x: Any) -> bool:
+    """A finite RGB triple (a Gf vector or a tuple): not a string, not an int array
+    (wrong-typed attributes, found by tools/fuzz.py)."""
+    return isinstance(x, (Gf.Vec3f, Gf.Vec3d, Gf.Vec3h, tuple)) and len(x) == 3 and _finite(x)
+
+
+def _number(x: Any) -> float:
+    """``x`` as a float; NaN when it is not a number (a wrong-typed attribute)."""
+    if isinstance(x, (int, float)):
+        return float(x)
+    return math.nan
 
 
 def _vec3(v: Any) -> np.ndarray:
@@ -384,7 +397,7 @@ def read_light(
 
 
 def _warn(lp: LightPrim, ctx: LightReadContext, msg: str) -> None:
-    text = f"light <{lp.path}>: {msg}"
+    text = " ".join(f"light <{lp.path}>: {msg}".split())  # one line, whatever the value
     lp.warnings.append(text)
     ctx.warn(text)
 
@@ -431,9 +444,14 @@ def _read_light_into(
     """
     a = _Attrs(prim, time, names)
     set_transform(lp, world)
-    if not math.isfinite(float(np.abs(world).sum())):  # one reduction: hot path
+    if not float(np.abs(world).sum()) <= limits.MAX_COORDINATE_M:  # one reduction: hot path
         lp.enabled = False
-        _warn(lp, ctx, "non-finite transform; light disabled")
+        lp.flux, lp.intensity, lp.peak_intensity = 0.0, np.zeros(3), 0.0
+        _warn(
+            lp,
+            ctx,
+            f"transform not finite or beyond {limits.MAX_COORDINATE_M:.0e} m; light disabled",
+        )
         return
     radiance, normalize, ok = _read_radiance(lp, a, ctx)
     size_ok = _read_size(lp, a, ctx, world)
@@ -454,8 +472,8 @@ def _read_light_into(
     ok &= _check_peak_intensity(lp, ctx)
     lp.valid = bool(ok)
     lp.enabled = bool(ok and visible)
-    if not ok:
-        lp.flux = 0.0  # a rejected light emits nothing (and 1e38 cd must not overflow float32)
+    if not ok:  # a rejected light emits nothing (and 1e38 cd must not overflow float32)
+        lp.flux, lp.intensity, lp.peak_intensity = 0.0, np.zeros(3), 0.0
 
 
 def _size_text(lp: LightPrim) -> str:
@@ -482,8 +500,8 @@ def _read_radiance(
     exposure = a.get("inputs:exposure", 0.0)
     color = a.get("inputs:color", (1.0, 1.0, 1.0))
     normalize = bool(a.get("inputs:normalize", False))
-    lp.diffuse = float(a.get("inputs:diffuse", 1.0))
-    lp.specular = float(a.get("inputs:specular", 1.0))
+    lp.diffuse = _number(a.get("inputs:diffuse", 1.0))
+    lp.specular = _number(a.get("inputs:specular", 1.0))
     ok = _check_emission_inputs(lp, ctx, intensity, exposure, color)
     rgb = _light_rgb(lp, a, ctx, color, ok)
     scalar = float(intensity) * 2.0 ** float(exposure) if ok else 0.0
@@ -505,12 +523,12 @@ def _check_emission_inputs(
             f"exposure {exposure} outside +-{limits.MAX_ABS_EXPOSURE:g} stops; light disabled",
         )
         ok = False
-    if not _finite(color):
-        _warn(lp, ctx, f"colour {tuple(color)} is not finite; light disabled")
+    if not _colour(color):
+        _warn(lp, ctx, f"inputs:color {color} is not a finite colour (3 numbers); light disabled")
         ok = False
     for name, val in (("diffuse", lp.diffuse), ("specular", lp.specular)):
         if not math.isfinite(val):
-            _warn(lp, ctx, f"inputs:{name} {val} is not finite; light disabled")
+            _warn(lp, ctx, f"inputs:{name} {val} is not a finite number; light disabled")
             ok = False
     return ok
 
@@ -518,7 +536,7 @@ def _check_emission_inputs(
 def _light_rgb(lp: LightPrim, a: _Attrs, ctx: LightReadContext, color: Any, ok: bool) -> np.ndarray:
     """Linear RGB factor: ``inputs:color`` (negatives clamped) times the blackbody colour
     when ``enableColorTemperature`` is on; zero for a non-finite colour."""
-    rgb = _vec3(color) if _finite(color) else np.zeros(3)
+    rgb = _vec3(color) if _colour(color) else np.zeros(3)
     if ok and min(float(color[0]), float(color[1]), float(color[2])) < 0:
         _warn(lp, ctx, f"negative colour {tuple(rgb)} clamped to 0")
         rgb = np.maximum(rgb, 0.0)
@@ -638,7 +656,9 @@ def _read_shaping(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContex
     lp.cone_angle = float(ang)
     lp.cone_softness = float(min(max(soft, 0.0), 1.0))
     lp.focus = float(max(focus, 0.0))
-    lp.focus_tint = _vec3(tint) if _finite(tint) else np.zeros(3)
+    if not _colour(tint):
+        _warn(lp, ctx, f"inputs:shaping:focusTint {tint} is not a finite colour; using black")
+    lp.focus_tint = _vec3(tint) if _colour(tint) else np.zeros(3)
     _read_ies(lp, a, ctx)
     if lp.ies_file is not None and lp.has_cone:
         # STB_SPEC: the cone does not clip the IES profile (Arnold test_1316: IES wins).
@@ -701,7 +721,7 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
         sg = a.get("inputs:shadow:falloffGamma", 1.0)
     else:
         lp.shadow_enable, sc, sd, sf, sg = True, (0.0, 0.0, 0.0), -1.0, -1.0, 1.0
-    if _finite(sc):
+    if _colour(sc):
         lp.shadow_color = np.array([min(max(float(sc[i]), 0.0), 1.0) for i in range(3)])
     else:
         lp.shadow_color = np.zeros(3)
@@ -710,6 +730,11 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
     if lp.shadow_distance > 0 and lp.shadow_falloff > lp.shadow_distance:
         lp.shadow_falloff = lp.shadow_distance
     lp.shadow_falloff_gamma = float(sg) if _finite(sg) and sg > 0 else 1.0
+    if not _colour(sc):  # an int[] or a string is not a colour (found by tools/fuzz.py)
+        _warn(lp, ctx, f"inputs:shadow:color {sc} is not a finite colour; using black")
+    for name, v in (("distance", sd), ("falloff", sf), ("falloffGamma", sg)):
+        if not _finite(v):  # non-finite or not a number (found by tools/fuzz.py)
+            _warn(lp, ctx, f"inputs:shadow:{name} {v} is not a finite number; ignored")
     upd = a.get("stb:shadow:update", prims.SHADOW_STATIC)
     if upd not in (prims.SHADOW_STATIC, prims.SHADOW_DYNAMIC):
         _warn(lp, ctx, f"stb:shadow:update '{upd}' is not static|dynamic; using static")
@@ -876,8 +901,10 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         import OpenImageIO as oiio
 
         buf = oiio.ImageBuf(resolved)
-        if buf.has_error:
-            raise OSError(buf.geterror())
+        # Read it all now: a lazily read (image cache) buffer of a truncated file
+        # resizes for minutes, every missing tile retried (found by tools/fuzz.py).
+        if buf.has_error or not buf.read(0, 0, True):
+            raise OSError(buf.geterror() or "cannot read it")
         # Average on a reduced copy: exact enough for a uniform ambient term.
         spec = buf.spec()
         w = max(1, min(spec.width, 256))

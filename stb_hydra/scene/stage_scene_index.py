@@ -158,7 +158,13 @@ class CameraDataSource(_DataSource):
 
     def camera(self) -> prims.CameraPrim:
         idx = self.index
-        return read_camera(self.entry.prim, idx.time, idx.world_matrix(self.entry), idx.mpu)
+        return read_camera(
+            self.entry.prim,
+            idx.time,
+            idx.world_matrix(self.entry),
+            idx.mpu,
+            lambda msg: idx.warn_once(msg, msg),
+        )
 
     def exposure_scale(self) -> float:
         idx, path = self.index, self.entry.path

@@ -105,15 +105,43 @@ def scan_asset_paths(path: str, library_root: str) -> tuple[list[Finding], bool]
 
     Returns (findings, readable): ``readable`` is False when the root file itself is
     not a USD layer (one ``unreadable`` finding)."""
+    from .. import limits
+    from .findings import RUNNER_RULES
+
     root = os.path.realpath(library_root)
     start = os.path.realpath(path)
     out: list[Finding] = []
+    if not _inside(start, root):  # a symlink out of the library: never opened
+        return [
+            finding(
+                "asset_path_unsafe",
+                "/",
+                f"'{os.path.basename(path)}' is a symlink that escapes the library root "
+                f"(resolves to '{start}'); not opened",
+            )
+        ], True
     todo, seen = [start], set()
     while todo:
         ident = todo.pop()
         if ident in seen:
             continue
         seen.add(ident)
+        if len(seen) > limits.VALIDATE_MAX_LAYERS:
+            r = RUNNER_RULES["unreadable"]
+            msg = (
+                f"more than {limits.VALIDATE_MAX_LAYERS} layers (nested sublayers, references "
+                "or payloads); stage not opened"
+            )
+            return [*out, Finding("unreadable", r.severity, "/", msg, r.hint)], True
+        size = _size(ident)
+        if size > limits.VALIDATE_LAYER_MAX_BYTES:
+            r = RUNNER_RULES["unreadable"]
+            msg = (
+                f"layer '{os.path.relpath(ident.split('[', 1)[0], root)}' is {size / 2**20:.0f} "
+                f"MiB, over the {limits.VALIDATE_LAYER_MAX_BYTES / 2**20:.0f} MiB limit; "
+                "not opened"
+            )
+            return [*out, Finding("unreadable", r.severity, "/", msg, r.hint)], ident != start
         try:
             layer = Sdf.Layer.FindOrOpen(ident)
         except Tf.ErrorException as exc:
@@ -123,8 +151,6 @@ def scan_asset_paths(path: str, library_root: str) -> tuple[list[Finding], bool]
             err = "not a USD layer"
         if layer is None:
             if ident == start:
-                from .findings import RUNNER_RULES
-
                 r = RUNNER_RULES["unreadable"]
                 return [
                     Finding("unreadable", r.severity, "/", f"cannot read layer: {err}", r.hint)
@@ -157,6 +183,15 @@ def scan_asset_paths(path: str, library_root: str) -> tuple[list[Finding], bool]
                 ) and _exists(anchored):
                     todo.append(anchored)
     return out, True
+
+
+def _size(ident: str) -> int:
+    """Size (bytes) of a layer file (a .usdz's package for a path inside one); 0 when
+    it cannot be read (left to the open)."""
+    try:
+        return os.path.getsize(ident.split("[", 1)[0])
+    except OSError:
+        return 0
 
 
 def _exists(anchored: str) -> bool:

@@ -36,6 +36,17 @@ class WorkerStartError(RuntimeError):
     """Workers cannot start (broken environment); one-line message with their stderr."""
 
 
+def _limit_memory(max_bytes: int) -> None:
+    """Cap this process's address space (RLIMIT_AS) at ``max_bytes`` (never raised
+    above an existing hard limit)."""
+    import resource
+
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    cap = max_bytes if hard == resource.RLIM_INFINITY else min(max_bytes, hard)
+    if soft == resource.RLIM_INFINITY or soft > cap:
+        resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+
+
 def _worker_main(
     conn: Connection, log_path: str, rules: list[str] | None, thumbnails: bool
 ) -> None:
@@ -43,6 +54,7 @@ def _worker_main(
     fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(fd, 2)  # C++ diagnostics and Python tracebacks of this worker
     os.close(fd)
+    _limit_memory(limits.VALIDATE_WORKER_MAX_BYTES)
     from pxr import Work
 
     import stb_hydra  # noqa: F401  (schema before any stage)
