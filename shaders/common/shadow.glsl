@@ -19,6 +19,28 @@ struct ShadowMap {
 layout(std430, binding = SSBO_SHADOW_MAPS) readonly buffer ShadowBuffer { ShadowMap shadow_maps[]; };
 uniform sampler2D u_shadow_atlas;   // r16 unorm
 
+// Visibility in [0, 1] of one bilinear 2x2 gather at atlas texel coordinate t
+// (reference depth ref = distance / range), with the light's shadow max distance and
+// falloff (occluders further than it from the receiver do not shadow).
+float shadow_tap(Light L, ShadowMap S, vec2 t, float ref, float dist) {
+    vec2 base = floor(t);
+    vec2 f = t - base;
+    vec4 g = textureGather(u_shadow_atlas, (base + 1.0) * S.params.z, 0);
+    // gather order: (0,1) (1,1) (1,0) (0,0)
+    vec4 w = vec4((1.0 - f.x) * f.y, f.x * f.y, f.x * (1.0 - f.y), (1.0 - f.x) * (1.0 - f.y));
+    vec4 lit = vec4(greaterThanEqual(g, vec4(ref)));
+    float maxd = L.shadow_color.w;
+    if (maxd > 0.0) {
+        vec4 to_occ = vec4(dist) - g * S.pos_range.w;
+        float fall = L.misc.x > 0.0 ? min(L.misc.x, maxd) : 0.0;
+        vec4 fade = fall > 0.0
+            ? pow(clamp((to_occ - (maxd - fall)) / fall, 0.0, 1.0), vec4(max(L.misc.y, 1e-3)))
+            : vec4(greaterThan(to_occ, vec4(maxd)));
+        lit = max(lit, fade);
+    }
+    return dot(lit, w);
+}
+
 // Returns the RGB transmission mix(shadow:color, 1, visibility).
 vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     int m = int(L.ies_shadow.z);
@@ -50,22 +72,7 @@ vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     }
     // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
     vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
-    vec2 base = floor(t);
-    vec2 f = t - base;
-    vec4 g = textureGather(u_shadow_atlas, (base + 1.0) * S.params.z, 0);
-    // gather order: (0,1) (1,1) (1,0) (0,0)
-    vec4 w = vec4((1.0 - f.x) * f.y, f.x * f.y, f.x * (1.0 - f.y), (1.0 - f.x) * (1.0 - f.y));
-    vec4 lit = vec4(greaterThanEqual(g, vec4(ref)));
-    float maxd = L.shadow_color.w;
-    if (maxd > 0.0) {
-        vec4 to_occ = vec4(dist) - g * range;
-        float fall = L.misc.x > 0.0 ? min(L.misc.x, maxd) : 0.0;
-        vec4 fade = fall > 0.0
-            ? pow(clamp((to_occ - (maxd - fall)) / fall, 0.0, 1.0), vec4(max(L.misc.y, 1e-3)))
-            : vec4(greaterThan(to_occ, vec4(maxd)));
-        lit = max(lit, fade);
-    }
-    float v = dot(lit, w);
+    float v = shadow_tap(L, S, t, ref, dist);
     return mix(L.shadow_color.rgb, vec3(1.0), v);
 }
 
@@ -86,4 +93,15 @@ vec3 local_shadow(Light L, vec3 P, vec3 N) {
 vec3 local_shadow(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) { return vec3(1.0); }
 #endif
+
+// Shadowed radiance (nits) light L reflects towards s.V: the exact methods' per-light
+// term (reference, tiled, clustered, lighttree). Area lights are integrated over their
+// area (common/area.glsl); the shadow lookup is skipped where nothing is reflected.
+vec3 light_radiance(Light L, Surface s) {
+    vec3 Ldir, d, sp;
+    if (!light_reflect(L, s, Ldir, d, sp)) return vec3(0.0);
+    vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
+    if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
+    return c * local_shadow(L, s.P, s.N);
+}
 #endif
