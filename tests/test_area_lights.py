@@ -228,3 +228,29 @@ def test_stb_unbiased_on_area_lights():
     e = relmse(img, ref)
     assert e <= 5e-3, e
     assert abs(img.mean() / ref.mean() - 1.0) < 0.01, img.mean() / ref.mean()
+
+
+# --- stb validate ---------------------------------------------------------------------------
+
+
+def test_noise_risk_counts_area_lights_reaching_over_the_horizon():
+    """A 1 m rect whose centre is 0.2 m below a floor point's horizon still lights the
+    point (part of its area is above): the overlap count uses the area model; a point
+    light at the same place does not reach it."""
+    from stb_hydra.scene import prims
+    from stb_hydra.validate.rules_overlap import overlap_counts
+
+    rect = prims.LightPrim(path="/R", type=prims.RECT_LIGHT)
+    rect.position = np.array([0.0, -0.2, 1.0])
+    rect.direction = np.array([0.0, 0.0, -1.0])  # faces the point at the origin
+    rect.width = rect.height = 1.0
+    rect.emission = prims.EMIT_COSINE
+    rect.range = 10.0
+    point = prims.LightPrim(path="/P", type=prims.SPHERE_LIGHT, treat_as_point=True)
+    point.position = rect.position
+    point.range = 10.0
+    pts = np.zeros((1, 3))
+    nrm = np.array([[0.0, 1.0, 0.0]])
+    ds = np.array([False])
+    assert overlap_counts(pts, nrm, ds, [rect]).tolist() == [1]
+    assert overlap_counts(pts, nrm, ds, [point]).tolist() == [0]

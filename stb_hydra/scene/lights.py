@@ -885,3 +885,20 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         avg = np.ones(3)
     _dome_avg_cache[resolved] = avg
     return avg
+
+
+def area_half_extent(lp: LightPrim) -> float:
+    """Half extent (m) of a light shaded as an area (issue 20, shaders/common/area.glsl):
+    radius of a sphere or disk, half the diagonal of a rect, the larger of a cylinder's
+    half length and radius; 0 for the point model (``treatAsPoint``, mesh, distant and
+    dome lights)."""
+    t = lp.type
+    if t == prims.SPHERE_LIGHT:
+        return 0.0 if lp.treat_as_point else float(lp.radius)
+    if t == prims.DISK_LIGHT:
+        return float(lp.radius)
+    if t == prims.RECT_LIGHT:
+        return 0.5 * math.hypot(lp.width, lp.height)
+    if t == prims.CYLINDER_LIGHT:
+        return max(0.5 * lp.length, float(lp.radius))
+    return 0.0
