@@ -326,3 +326,6 @@ AREA_POINT_RATIO = 0.03
 #: strip is approximated by (area-preserving): 16 keeps the irradiance within 0.1 %
 #: of the exact disk (tests/test_area_lights.py::test_polygon_disk_closed_form).
 AREA_POLY_VERTS = 16
+#: Largest PCSS blocker-search / filter radius in shadow-map texels at the receiver
+#: (soft shadows of area lights, common/shadow.glsl): bounds the kernel's footprint.
+PCSS_MAX_TEXELS = 64.0

@@ -33,6 +33,23 @@ float light_half_extent(Light L) {
     return L.area.x;
 }
 
+// Half axes (m, world) of the disk with the light's area as seen along -ldir (unit,
+// from the receiver towards the light): the shape its soft shadows use (PCSS in
+// common/shadow.glsl). Rect and cylinder: their axes scaled to the equal-area ellipse.
+void light_shadow_axes(Light L, vec3 ldir, out vec3 A, out vec3 B) {
+    vec3 X = L.tangent_type.xyz;
+    const float k = 1.1283792;  // 2 / sqrt(pi): square of half side 1 -> disk of equal area
+    if (L.area.z == AREA_RECT) { A = X * L.area.x * k; B = light_bitangent(L) * L.area.y * k; return; }
+    if (L.area.z == AREA_DISK) { A = X * L.area.x; B = light_bitangent(L) * L.area.x; return; }
+    vec3 side = cross(X, ldir);
+    if (L.area.z == AREA_CYLINDER && dot(side, side) > 1e-6) {
+        A = X * L.area.x * k; B = normalize(side) * L.area.y * k; return;
+    }
+    vec3 u = normalize(abs(ldir.y) < 0.9 ? cross(ldir, vec3(0.0, 1.0, 0.0)) : cross(ldir, vec3(1.0, 0.0, 0.0)));
+    float r = L.area.z == AREA_CYLINDER ? L.area.y : L.area.x;
+    A = u * r; B = cross(ldir, u) * r;
+}
+
 bool light_is_area(Light L, float dist) {
     return L.area.z != AREA_POINT && light_half_extent(L) > LIM_AREA_POINT_RATIO * dist;
 }

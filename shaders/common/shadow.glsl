@@ -41,6 +41,80 @@ float shadow_tap(Light L, ShadowMap S, vec2 t, float ref, float dist) {
     return dot(lit, w);
 }
 
+#define PCSS_SEARCH_TAPS 16
+#define PCSS_FILTER_TAPS 32
+
+// Vogel-spiral offset k of n on the unit disk, rotated by `rot` (rad).
+vec2 vogel(int k, int n, float rot) {
+    float r = sqrt((float(k) + 0.5) / float(n));
+    float a = float(k) * 2.39996323 + rot;
+    return r * vec2(cos(a), sin(a));
+}
+
+// Atlas texel coordinate of world point X in map S; false outside a spot map.
+bool shadow_texel(ShadowMap S, vec3 X, out vec2 t) {
+    vec2 uv;
+    if (S.atlas.w < 0.5) {
+        vec4 c = S.view_proj * vec4(X, 1.0);
+        if (c.w <= 0.0) return false;
+        uv = c.xy / c.w * 0.5 + 0.5;
+        if (any(lessThan(uv, vec2(0.0))) || any(greaterThan(uv, vec2(1.0)))) return false;
+    } else {
+        uv = oct_dir_to_uv(normalize(X - S.pos_range.xyz));
+    }
+    t = S.atlas.xy + uv * S.atlas.z - 0.5;
+    return true;
+}
+
+// Soft shadow of an area light: PCSS (Fernando 2005) on the map captured from the
+// light's centre, with the kernel shaped like the light. A blocker at distance z from
+// the light shadows the receiver (distance D) from the light's points seen through a
+// copy of the light's shape scaled by (D - z) / z around the receiver. Taps are points
+// of that shape (a Vogel disk mapped onto its two half axes, area-preserving), projected
+// along the light direction onto the receiver's plane and then exactly into the map,
+// each compared with its own distance to the light (no receiver-plane bias; octahedral
+// seams need no care). The blocker search uses z = max(near, D / 20); the filter the
+// mean blocker distance. Both are capped at LIM_PCSS_MAX_TEXELS map texels.
+float shadow_pcss(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) {
+    vec3 Lc = S.pos_range.xyz;
+    float range = S.pos_range.w;
+    vec3 ldir = (Lc - Pb) / max(dist, 1e-9);
+    float ndl = dot(N, ldir);
+    if (abs(ndl) < 0.05) ndl = ndl < 0.0 ? -0.05 : 0.05;
+    vec3 A, B;
+    light_shadow_axes(L, ldir, A, B);
+    float cap = LIM_PCSS_MAX_TEXELS * S.params.y * dist;   // world size of the cap
+    float amax = max(length(A), length(B));
+    float zmin = max(S.params.x, 0.05 * dist);
+    float search = min((dist - zmin) / zmin, cap / max(amax, 1e-6));
+    float zsum = 0.0, zn = 0.0;
+    for (int k = 0; k < PCSS_SEARCH_TAPS; ++k) {
+        vec2 o2 = vogel(k, PCSS_SEARCH_TAPS, rot) * search;
+        vec3 o = A * o2.x + B * o2.y;
+        vec3 X = Pb + o - ldir * (dot(o, N) / ndl);
+        vec2 tk;
+        if (!shadow_texel(S, X, tk)) continue;
+        float rk = length(X - Lc) / range;
+        vec4 g = textureGather(u_shadow_atlas, (floor(tk) + 1.0) * S.params.z, 0);
+        vec4 b = vec4(lessThan(g, vec4(rk)));
+        zsum += dot(b, g);
+        zn += dot(b, vec4(1.0));
+    }
+    if (zn <= 0.0) return 1.0;                            // no blocker: fully lit
+    float zb = max(zsum / zn * range, 1e-4);
+    float pen = min(max(dist - zb, 0.0) / zb, cap / max(amax, 1e-6));
+    float v = 0.0;
+    for (int k = 0; k < PCSS_FILTER_TAPS; ++k) {
+        vec2 o2 = vogel(k, PCSS_FILTER_TAPS, rot) * pen;
+        vec3 o = A * o2.x + B * o2.y;
+        vec3 X = Pb + o - ldir * (dot(o, N) / ndl);
+        vec2 tk;
+        if (!shadow_texel(S, X, tk)) { v += 1.0; continue; }
+        v += shadow_tap(L, S, tk, length(X - Lc) / range, dist);
+    }
+    return v / float(PCSS_FILTER_TAPS);
+}
+
 // Returns the RGB transmission mix(shadow:color, 1, visibility).
 vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     int m = int(L.ies_shadow.z);
@@ -72,7 +146,8 @@ vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     }
     // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
     vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
-    float v = shadow_tap(L, S, t, ref, dist);
+    float v = L.area.z != AREA_POINT ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
+                                     : shadow_tap(L, S, t, ref, dist);
     return mix(L.shadow_color.rgb, vec3(1.0), v);
 }
 

@@ -161,6 +161,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
+        "LIM_PCSS_MAX_TEXELS": f"{limits.PCSS_MAX_TEXELS:.1f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),
