@@ -254,3 +254,45 @@ def test_noise_risk_counts_area_lights_reaching_over_the_horizon():
     ds = np.array([False])
     assert overlap_counts(pts, nrm, ds, [rect]).tolist() == [1]
     assert overlap_counts(pts, nrm, ds, [point]).tolist() == [0]
+
+
+# --- normalize, colour temperature, cone ---------------------------------------------------
+
+
+def _disk(extra: str, r: float = 0.3, h: float = 0.5, L: float = 1000.0) -> str:
+    return (
+        f'def DiskLight "L" (\n    prepend apiSchemas = ["ShapingAPI"]\n) {{\n'
+        f"    float inputs:intensity = {L}\n    float inputs:specular = 0\n"
+        f"    float inputs:radius = {r}\n{extra}"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n    float xformOp:rotateX = -90\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+    )
+
+
+def test_normalize_and_colour_temperature_scale_the_area_radiance():
+    """normalize divides the radiance by the area (pi r^2); 6500 K is white: the area
+    image is the plain one scaled, pixel for pixel."""
+    _, plain = _floor(_disk(""))
+    _, norm = _floor(_disk("    bool inputs:normalize = 1\n"))
+    _, warm = _floor(
+        _disk(
+            "    bool inputs:enableColorTemperature = 1\n    float inputs:colorTemperature = 6500\n"
+        )
+    )
+    m = plain > 0.01 * plain.max()
+    np.testing.assert_allclose(norm[m] * math.pi * 0.3**2, plain[m], rtol=2e-3)
+    np.testing.assert_allclose(warm[m], plain[m], rtol=2e-3)
+
+
+def test_cone_shapes_an_area_light_from_its_centre():
+    """Shaping on an area light is evaluated towards the point from the light's centre
+    (docs/area_lights/README.md): inside a hard 30 degree cone the image is the unshaped
+    area result, outside it black."""
+    stage, plain = _floor(_disk(""))
+    _, cone = _floor(_disk("    float inputs:shaping:cone:angle = 30\n"))
+    p = plane_points(stage, W, H)
+    theta = np.degrees(np.arctan2(np.hypot(p[..., 0], p[..., 2]), 0.5))
+    inside = (theta < 28) & (plain > 0.01 * plain.max())
+    outside = theta > 32
+    np.testing.assert_allclose(cone[inside], plain[inside], rtol=2e-3)
+    assert np.all(cone[outside] == 0.0)

@@ -5,11 +5,10 @@
 // clipped to the surface's horizon). The rect is its own polygon; the disk rim, the
 // sphere's silhouette circle and the cylinder's visible strip (two silhouette lines and
 // the two near half-rims) are polygons of LIM_AREA_POLY_VERTS vertices scaled to keep
-// their area. Specular (GGX): the representative-point method (Karis 2013): the lobe is
-// evaluated towards the point of the light nearest the reflected ray, with the
-// light's far-field intensity towards that point and the lobe widened by the light's
-// angular size (energy normalisation (alpha / alpha')^2). Approximate: see
-// docs/area_lights/README.md for what it was measured against.
+// their area. Specular (GGX): still the point model (the centre's direction and the
+// far-field intensity); the representative-point method (Karis 2013) and a lobe widened
+// by the light's angular size were measured and were worse on rough surfaces and not
+// reliably better on smooth ones (docs/area_lights/README.md). LTC is the next step.
 //
 // Shaping (cone, focus, focusTint, IES) is evaluated once per shading point, towards
 // the point from the light's centre, and multiplies the area's radiance: far from the
@@ -147,38 +146,6 @@ float polygon_form_factor(vec3 v[AREA_MAXV], int n, vec3 N) {
     return min(abs(sum) / (2.0 * PI), 1.0);
 }
 
-// Point of the light nearest the ray P + t R (representative point, relative to P).
-vec3 area_rep_point(Light L, vec3 P, vec3 R) {
-    vec3 c = L.pos_range.xyz - P;
-    vec3 X = L.tangent_type.xyz;
-    float kind = L.area.z;
-    if (kind == AREA_RECT || kind == AREA_DISK) {
-        vec3 Z = L.axis_emit.xyz;
-        float den = dot(R, Z);
-        // Ray hits the light's plane: that point; else the centre-facing direction.
-        float t = abs(den) > 1e-6 ? dot(c, Z) / den : -1.0;
-        vec3 hit = t > 0.0 ? t * R - c : R * length(c) - c;
-        vec3 Y = light_bitangent(L);
-        vec2 uv = vec2(dot(hit, X), dot(hit, Y));
-        if (kind == AREA_RECT) uv = clamp(uv, -L.area.xy, L.area.xy);
-        else if (length(uv) > L.area.x) uv *= L.area.x / length(uv);
-        return c + uv.x * X + uv.y * Y;
-    }
-    vec3 centre = c;
-    float r = L.area.x;
-    if (kind == AREA_CYLINDER) {
-        // Nearest point of the axis segment to the ray, then the tube's radius.
-        float h = L.area.x;
-        r = L.area.y;
-        float b = dot(R, X);
-        float den = 1.0 - b * b;
-        float s = den > 1e-6 ? (b * dot(R, c) - dot(X, c)) / den : 0.0;
-        centre = c + clamp(s, -h, h) * X;
-    }
-    vec3 toray = dot(centre, R) * R - centre;
-    return centre + toray * clamp(r / max(length(toray), 1e-9), 0.0, 1.0);
-}
-
 // Unshadowed radiance reflected towards s.V by light L, diffuse and specular parts
 // (nits, before the light's diffuse/specular multipliers), WITHOUT the scalar shape
 // (cone x normalised IES) -- the caller multiplies by light_shape_scalar(L, -Ldir).
@@ -203,20 +170,13 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
     float F = polygon_form_factor(v, n, s.N);
     diff = s.diffuse * Lrad * F;
-    // Specular: representative point, far-field intensity towards it, widened lobe.
-    vec3 R = reflect(-s.V, s.N);
-    vec3 p = area_rep_point(L, s.P, R);
-    float ds = max(length(p), LIM_MIN_LIGHT_DISTANCE);
-    vec3 Ls = p / ds;
+    // Specular: the point model (the centre's direction, the far-field illuminance).
+    // Measured against a quadrature of the same GGX lobe over the light (docs/area_lights):
+    // unbiased in the mean for roughness >= 0.4, per-pixel errors 1-45 %; smooth surfaces
+    // need LTC (not done).
     vec3 dsp, ssp;
-    Surface s2 = s;
-    float a2 = min(s.alpha + light_half_extent(L) / (2.0 * ds), 1.0);
-    s2.alpha = a2;
-    brdf_eval(s2, Ls, dsp, ssp);
-    float em = L.axis_emit.w == EMIT_ISOTROPIC ? 1.0 : emission_shape(L, -Ls);
-    // Far-field illuminance towards p, capped by the hemisphere's pi x radiance.
-    vec3 Es = min(Lrad * em / (L.area.w * ds * ds), Lrad * PI);
-    spec = ssp * Es * (s.alpha * s.alpha) / (a2 * a2);
+    brdf_eval(s, Ldir, dsp, ssp);
+    spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
     return true;
 }
 

@@ -41,8 +41,8 @@ float shadow_tap(Light L, ShadowMap S, vec2 t, float ref, float dist) {
     return dot(lit, w);
 }
 
-#define PCSS_SEARCH_TAPS 16
-#define PCSS_FILTER_TAPS 32
+#define PCSS_SEARCH_TAPS 8
+#define PCSS_FILTER_TAPS 16
 
 // Vogel-spiral offset k of n on the unit disk, rotated by `rot` (rad).
 vec2 vogel(int k, int n, float rot) {
@@ -146,8 +146,9 @@ vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     }
     // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
     vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
-    float v = L.area.z != AREA_POINT ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
-                                     : shadow_tap(L, S, t, ref, dist);
+    // Soft shadows where the light is shaded as an area (same size rule as area.glsl).
+    float v = light_is_area(L, dist0) ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
+                                      : shadow_tap(L, S, t, ref, dist);
     return mix(L.shadow_color.rgb, vec3(1.0), v);
 }
 
