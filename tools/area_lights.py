@@ -54,7 +54,10 @@ def accuracy(args: argparse.Namespace) -> None:
     if out:
         out.mkdir(parents=True, exist_ok=True)
     w, h = args.width, args.height
-    print(f"{w}x{h}, Mitsuba {args.spp} spp x {args.emitter_samples} light samples")
+    print(
+        f"{w}x{h}, Mitsuba {args.spp} spp x {args.emitter_samples} light samples "
+        f"(point, spot: {4 * args.spp} spp x 1)"
+    )
     print("| scene | box | median | p95 | pixels |")
     print("|---|---|---|---|---|")
     for kind in args.kinds.split(","):
@@ -62,9 +65,12 @@ def accuracy(args: argparse.Namespace) -> None:
             if not box and kind in ("point", "spot"):
                 continue
             stage = area_scenes.area_stage(kind) if box else area_scenes.area_stage_no_box(kind)
-            ref, hit, light, nrm = mr.render_mitsuba(
-                stage, w, h, args.spp, emitter_samples=args.emitter_samples
-            )
+            # Mitsuba's `direct` integrator counts a delta light once per emitter sample
+            # (x emitter_samples): point and spot get 4x the camera rays, 1 light sample.
+            delta = kind in ("point", "spot")
+            spp = 4 * args.spp if delta else args.spp
+            es = 1 if delta else args.emitter_samples
+            ref, hit, light, nrm = mr.render_mitsuba(stage, w, h, spp, emitter_samples=es)
             ours = stb_hydra.render(stage, width=w, height=h, lighting="reference")
             err, mask, emap = mr.compare(ours, ref, hit, light, nrm)
             med, p95 = np.median(err) * 100, np.percentile(err, 95) * 100
@@ -209,38 +215,55 @@ def specular(args: argparse.Namespace) -> None:
             sys.stdout.flush()
 
 
-def cost(args: argparse.Namespace) -> None:
-    """Frame time of the area model against the point model (the same 24 area lights,
-    plus 96 more for a many-light case), reference and STB, 745 x 360, medians of
-    ``--frames`` finished frames, A/B in this one process."""
+def cost_one(args: argparse.Namespace) -> None:
+    """One engine, one model (a process of its own: programs are cached per context by
+    their defines, not by the generated constants): prints frame and lighting medians."""
     import area_scenes
 
-    from stb_hydra.apps.bench_core import load_average, measure_engine
+    from stb_hydra.apps.bench_core import measure_engine
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
-    from stb_hydra.renderer.shader_constants import GLSL_CONSTANTS
 
-    area_ratio = GLSL_CONSTANTS["LIM_AREA_POINT_RATIO"]
-    print(f"745x360, {args.frames} frames (median), load average {load_average()}")
-    print("| lights | method | point model (ms) | area model (ms) | ratio |")
+    if args.model == "point":
+        _point_model()
+    stage = area_scenes.many_area_lights_stage(args.lights)
+    eng = Engine(stage, RenderSettings(width=745, height=360, lighting=args.method, profile=True))
+    try:
+        m = measure_engine(eng, frames=args.frames, warmup=1)
+    finally:
+        eng.release()
+    light = [sum(v for k, v in p.items() if k.startswith("lighting")) for p in m.passes]
+    print(f"RESULT {float(np.median(m.frame)):.3f} {float(np.median(light)):.3f}")
+
+
+def cost(args: argparse.Namespace) -> None:
+    """Frame time of the area model against the point model (the same area lights),
+    reference and STB, 745 x 360: one process per (model, repeat), run point, area,
+    point, area so that a shared machine's load drift hits both alike; medians over
+    both repeats of ``--frames`` finished frames, and of the lighting task's time."""
+    import subprocess
+
+    from stb_hydra.apps.bench_core import load_average
+
+    print(f"745x360, 2 x {args.frames} frames each (median), load average {load_average()}")
+    print("| lights | method | point model: frame / lighting (ms) | area model | ratio |")
     print("|---|---|---|---|---|")
-    for n in (24, 120):
-        stage = area_scenes.many_area_lights_stage(n)
-        for method in ("reference", "stb"):
-            ms = {}
-            for model in ("point", "area"):
-                GLSL_CONSTANTS["LIM_AREA_POINT_RATIO"] = "1.0e9" if model == "point" else area_ratio
-                s = RenderSettings(width=745, height=360, lighting=method, profile=True)
-                eng = Engine(stage, s)
-                try:
-                    m = measure_engine(eng, frames=args.frames, warmup=2)
-                finally:
-                    eng.release()
-                ms[model] = float(np.median(m.frame))
-            r = ms["area"] / ms["point"]
-            print(f"| {n} | {method} | {ms['point']:.1f} | {ms['area']:.1f} | {r:.2f} |")
-            sys.stdout.flush()
-    GLSL_CONSTANTS["LIM_AREA_POINT_RATIO"] = area_ratio
+    for n, method in ((24, "reference"), (24, "stb"), (120, "stb")):
+        res: dict[str, list[tuple[float, float]]] = {"point": [], "area": []}
+        for model in ("point", "area", "point", "area"):
+            cmd = [sys.executable, __file__, "_cost_one", "--model", model, "--method", method]
+            cmd += ["--lights", str(n), "--frames", str(args.frames)]
+            out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+            line = next(x for x in out.splitlines() if x.startswith("RESULT"))
+            f, li = (float(x) for x in line.split()[1:])
+            res[model].append((f, li))
+        fp, lp = (float(np.median([r[i] for r in res["point"]])) for i in (0, 1))
+        fa, la = (float(np.median([r[i] for r in res["area"]])) for i in (0, 1))
+        print(
+            f"| {n} | {method} | {fp:.0f} / {lp:.0f} | {fa:.0f} / {la:.0f} | "
+            f"{fa / fp:.2f} / {la / max(lp, 1e-9):.2f} |"
+        )
+        sys.stdout.flush()
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -257,10 +280,16 @@ def main(argv: list[str] | None = None) -> None:
     s = sub.add_parser("specular")
     s.add_argument("--point-model", action="store_true")
     c = sub.add_parser("cost")
-    c.add_argument("--frames", type=int, default=8)
+    c.add_argument("--frames", type=int, default=4)
+    o = sub.add_parser("_cost_one")
+    o.add_argument("--model", choices=("point", "area"), required=True)
+    o.add_argument("--method", default="reference")
+    o.add_argument("--lights", type=int, default=24)
+    o.add_argument("--frames", type=int, default=4)
     args = ap.parse_args(argv)
     t = time.perf_counter()
-    {"accuracy": accuracy, "specular": specular, "cost": cost}[args.cmd](args)
+    cmds = {"accuracy": accuracy, "specular": specular, "cost": cost, "_cost_one": cost_one}
+    cmds[args.cmd](args)
     print(f"({time.perf_counter() - t:.0f} s)")
 
 
