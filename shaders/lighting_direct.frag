@@ -23,13 +23,7 @@ void main() {
 #ifdef LOCAL_LIGHTS
     uint n = u_counts.x;
     for (uint i = 0u; i < n; ++i) {
-        Light L = lights[i];
-        vec3 Ldir; float dist;
-        vec3 E = light_illuminance(L, s.P, Ldir, dist);
-        if (E.r + E.g + E.b <= 0.0) continue;
-        vec3 d, sp;
-        brdf_eval(s, Ldir, d, sp);
-        c += (d * L.misc.z + sp * L.misc.w) * E * local_shadow(L, s.P, s.N);
+        c += light_radiance(lights[i], s);
     }
 #endif
     c += emission;

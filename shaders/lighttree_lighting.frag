@@ -54,13 +54,7 @@ void main() {
                 for (uint k = 0u; k < count; ++k) {
                     uint i = tree_lights[nd.first_light + k];
                     if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
-                    Light L = lights[i];
-                    vec3 Ldir; float dist;
-                    vec3 E = light_illuminance(L, s.P, Ldir, dist);
-                    if (E.r + E.g + E.b <= 0.0) continue;
-                    vec3 d, sp;
-                    brdf_eval(s, Ldir, d, sp);
-                    c += (d * L.misc.z + sp * L.misc.w) * E * local_shadow(L, s.P, s.N);
+                    c += light_radiance(lights[i], s);
                 }
             }
             ni += 1u;

@@ -62,7 +62,8 @@ float target(uint i, vec3 A, vec3 B, vec3 C, float R) {
     vec3 ab = B - A;
     float t = clamp(dot(P - A, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
     vec3 d = P - (A + t * ab);
-    float d2 = max(dot(d, d), LIM_MIN_LIGHT_DISTANCE * LIM_MIN_LIGHT_DISTANCE);
+    float ext = light_half_extent(L);  // area lights: no 1/d^2 peak inside their size
+    float d2 = max(dot(d, d) + ext * ext, LIM_MIN_LIGHT_DISTANCE * LIM_MIN_LIGHT_DISTANCE);
     float p = max(L.intensity.w, 0.0) / d2;
     if (u_target_mode == 0) return p;
     // "shaped": zero where the light cannot reach the region, shape-weighted elsewhere.

@@ -64,18 +64,14 @@ void main() {
         bool own = (split & (1u << uint(j))) != 0u;  // term evaluated here, per pixel
         if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0 || (!own && terms[j] <= 0.0)) continue;
         Light L = lights[li];
-        vec3 Ldir; float dist;
-        float f = light_falloff(L, s.P, Ldir, dist);
-        if (f <= 0.0) continue;
+        vec3 Ldir, d, sp;
+        if (!light_reflect(L, s, Ldir, d, sp)) continue;  // area lights: common/area.glsl
         float term = terms[j];
 #if !defined(STB_UNIT_TERMS) && !defined(STB_PIXEL_TERMS)
         if (own) term = texelFetch(u_pixel_terms, px, 0)[j];
 #endif
         if (term <= 0.0) continue;
-        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * term;
-        vec3 d, sp;
-        brdf_eval(s, Ldir, d, sp);
-        c += (d * L.misc.z + sp * L.misc.w) * E * W;
+        c += (d * L.misc.z + sp * L.misc.w) * term * W;
     }
     c += emission;
     o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);

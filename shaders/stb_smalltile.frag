@@ -96,12 +96,15 @@ void main() {
             float f = light_falloff(L, pts[k].P, Ldir, dist);
             if (f <= 0.0) continue;
             float Ev = luminance(L.intensity.rgb * light_shape(L, -Ldir)) * f;
+            float Ea = light_target_irradiance(L, pts[k].P, pts[k].N, Ldir, dist, Ev);
             float NoL = max(dot(pts[k].N, Ldir), 0.0);
             vec3 H = normalize(pts[k].V + Ldir);
             float NoH = max(dot(pts[k].N, H), 0.0);
             float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
             float V = luminance(local_shadow(L, pts[k].P, pts[k].N));
-            ph += Ev * fv * (V * NoL + u_eps);
+            // Area irradiance for the diffuse part (issue 20): positive wherever the
+            // light reaches the point, so Ev x eps keeps the target positive there.
+            ph += V * (kd / PI * Ea + Ev * ks * spec_norm * pow(NoH, spec_n) * NoL) + Ev * fv * u_eps;
         }
         ph /= float(npts);
         ph_all[slot] = ph;

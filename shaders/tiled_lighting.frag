@@ -44,13 +44,7 @@ void main() {
     for (uint k = 0u; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
-        Light L = lights[i];
-        vec3 Ldir; float dist;
-        vec3 E = light_illuminance(L, s.P, Ldir, dist);
-        if (E.r + E.g + E.b <= 0.0) continue;
-        vec3 d, sp;
-        brdf_eval(s, Ldir, d, sp);
-        c += (d * L.misc.z + sp * L.misc.w) * E * local_shadow(L, s.P, s.N);
+        c += light_radiance(lights[i], s);
     }
     c += emission;
     o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);

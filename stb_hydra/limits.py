@@ -380,3 +380,18 @@ BAKE_SHADOW_VIEW_HEIGHT = 1080
 #: `stb validate` (lightmap_density): lightmaps coarser than this (texels per metre,
 #: 25 cm texels) blur light pools and shadows visibly at street-level viewing distances.
 VALIDATE_LIGHTMAP_TEXEL_DENSITY_MIN = 4.0
+
+# --- Area lights (issue 20; common/area.glsl, common/shadow.glsl) --------------------------
+
+#: Below this ratio of the light's half extent to its distance, an area light is lit
+#: with the point model (same result within r^2/d^2 = 0.09 % for a disk on its axis,
+#: measured in tests/test_area_lights.py::test_point_threshold_error).
+AREA_POINT_RATIO = 0.03
+#: Vertices of the polygon a disk's rim, a sphere's silhouette or a cylinder's visible
+#: strip is approximated by (area-preserving): 16 keeps the irradiance within 0.5 %
+#: of the exact disk, median 0.2 % (tests/test_area_lights.py::
+#: test_disk_light_matches_closed_form, test_sphere_cut_by_floor_matches_closed_form).
+AREA_POLY_VERTS = 16
+#: Largest PCSS blocker-search / filter radius in shadow-map texels at the receiver
+#: (soft shadows of area lights, common/shadow.glsl): bounds the kernel's footprint.
+PCSS_MAX_TEXELS = 64.0

@@ -188,11 +188,13 @@ def test_shadow_params_in_metres():
     assert lp.shadow_falloff == pytest.approx(0.5)
 
 
-def test_area_lights_warn_once_per_stage():
+def test_area_lights_do_not_warn():
+    """Issue 20: disk/rect/cylinder lights are shaded as areas, so the old "lit as
+    punctual lights" approximation warning is gone."""
     stage = usda_stage(
         HEADER.format(mpu=1.0)
         + 'def DiskLight "A" {}\ndef RectLight "B" {}\ndef CylinderLight "C" {}\n'
     )
     si = StageSceneIndex(stage)
     RenderIndex(si, RenderDelegate()).sync_all()
-    assert sum("punctual" in w for w in si.warnings) == 1
+    assert not any("punctual" in w for w in si.warnings)

@@ -71,13 +71,14 @@ def test_light_struct_matches_the_python_layout():
     body = re.search(r"struct\s+Light\s*\{(.*?)\};", code, flags=re.S).group(1)
     members = re.findall(r"(\w+)\s+(\w+)\s*;", body)
     assert members == [("vec4", m) for m, _ in sc.LIGHT_LAYOUT]
-    assert sc.LIGHT_STRIDE_FLOATS == 36 and sc.LIGHT_STRIDE_BYTES == 144
+    assert sc.LIGHT_STRIDE_FLOATS == 40 and sc.LIGHT_STRIDE_BYTES == 160  # + area (issue 20)
     # a few columns the Python side addresses by number today
     assert sc.LIGHT_COL_RANGE == 3
     assert sc.LIGHT_COL_FLUX == 15
     assert sc.LIGHT_COL_CUTOFF == 17
     assert sc.LIGHT_COL_SHADOW_MAP == 26
     assert sc.LIGHT_COL_SPECULAR == 35
+    assert sc.LIGHT_COL_AREA_KIND == 38
     assert sorted(sc.LIGHT_COLUMNS.values()) == sorted(set(sc.LIGHT_COLUMNS.values()))
 
 

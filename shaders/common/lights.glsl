@@ -15,6 +15,7 @@ struct Light {
     vec4 ies_shadow;    // x IES scale (cd per table unit), y angleScale, z shadow map (-1 none), w shadow flags
     vec4 shadow_color;  // rgb shadow colour, w shadow max distance (m, <0 none)
     vec4 misc;          // x shadow falloff (m), y falloff gamma, z diffuse mult, w specular mult
+    vec4 area;          // xy half sizes (m), z area shape code (AREA_*), w radiance per cd (m^-2)
 };
 
 layout(std430, binding = SSBO_LIGHTS) readonly buffer LightBuffer { Light lights[]; };
@@ -63,18 +64,22 @@ float emission_shape(Light L, vec3 w) {
     return 1.0;
 }
 
-vec3 light_shape_rgb(Light L, vec3 w) {
-    float c = dot(w, L.axis_emit.xyz);
-    float shape = emission_shape(L, w);
+// focusTint colour x IES scale towards w (light_shape_rgb without the emission model).
+vec3 light_tint_rgb(Light L, vec3 w) {
+    float shape = 1.0;
 #ifdef HAS_IES
     if (L.tint_ies.w >= 0.0) shape *= L.ies_shadow.x;
 #endif
     vec3 tint = vec3(1.0);
     if (L.cone.w > 0.0) {
-        float f = pow(abs(c), L.cone.w);
+        float f = pow(abs(dot(w, L.axis_emit.xyz)), L.cone.w);
         tint = mix(L.tint_ies.rgb, vec3(1.0), f);
     }
     return tint * shape;
+}
+
+vec3 light_shape_rgb(Light L, vec3 w) {
+    return light_tint_rgb(L, w) * emission_shape(L, w);
 }
 
 vec3 light_shape(Light L, vec3 w) {
@@ -98,4 +103,6 @@ vec3 light_illuminance(Light L, vec3 P, out vec3 Ldir, out float dist) {
     if (f <= 0.0) return vec3(0.0);
     return L.intensity.rgb * light_shape(L, -Ldir) * f;
 }
+
+#include "common/area.glsl"
 #endif

@@ -1,7 +1,7 @@
 """FoV light culling (CPU, vectorised) and the packed std430 light buffer.
 
 The packed layout mirrors ``struct Light`` in ``shaders/common/lights.glsl``:
-nine vec4 (144 bytes) per light; index in the buffer = position in the FoV list.
+ten vec4 (160 bytes) per light; index in the buffer = position in the FoV list.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from .. import limits
 from . import shader_constants as sc
 from .light_table import LightTable
 
-LIGHT_STRIDE_FLOATS = sc.LIGHT_STRIDE_FLOATS  # 9 x vec4
+LIGHT_STRIDE_FLOATS = sc.LIGHT_STRIDE_FLOATS  # 10 x vec4
 LIGHT_STRIDE_BYTES = sc.LIGHT_STRIDE_BYTES
 #: Float column of the shadow-map record slot (-1 = unshadowed): the one column
 #: patched when only slots change.
@@ -77,4 +77,8 @@ def pack_lights(
     out[:, C.LIGHT_COL_SHADOW_FALLOFF_GAMMA] = t.shadow_falloff_gamma[rows]
     out[:, C.LIGHT_COL_DIFFUSE] = t.diffuse[rows]
     out[:, C.LIGHT_COL_SPECULAR] = t.specular[rows]
+    out[:, C.LIGHT_COL_AREA_SIZE_X] = t.area_size[rows, 0]
+    out[:, C.LIGHT_COL_AREA_SIZE_Y] = t.area_size[rows, 1]
+    out[:, C.LIGHT_COL_AREA_KIND] = t.area_kind[rows]
+    out[:, C.LIGHT_COL_AREA_RADIANCE] = t.area_radiance[rows]
     return out

@@ -17,6 +17,7 @@ import numpy as np
 from ..scene import prims
 from ..scene.lights import influence_range
 from ..scene.prims import NO_CONE_CUTOFF_RAD, LightPrim
+from . import shader_constants as sc
 
 TYPE_CODES = {t: i for i, t in enumerate(prims.LIGHT_TYPES)}
 LOCAL_TYPE_CODES = np.array([TYPE_CODES[t] for t in prims.LOCAL_LIGHT_TYPES], dtype=np.int8)
@@ -53,8 +54,41 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "shadow_falloff_gamma": ((), np.float32, 1.0),
     "radius": ((), np.float32, 0.0),
     "angle": ((), np.float32, 0.0),  # distant light angular diameter, degrees
+    # Area lights (common/area.glsl): half sizes (m: rect w/2, h/2; disk, sphere r, 0;
+    # cylinder length/2, r), shape code (shader_constants.AREA_*), radiance per cd of
+    # ``intensity`` (1 / projected area along the axis, m^-2).
+    "area_size": ((2,), np.float32, 0.0),
+    "area_kind": ((), np.int8, 0),
+    "area_radiance": ((), np.float32, 0.0),
     "version": ((), np.int64, 0),
 }
+
+
+_AREA_KINDS = {
+    prims.RECT_LIGHT: sc.AREA_RECT,
+    prims.DISK_LIGHT: sc.AREA_DISK,
+    prims.SPHERE_LIGHT: sc.AREA_SPHERE,
+    prims.CYLINDER_LIGHT: sc.AREA_CYLINDER,
+}
+
+
+def area_shape(lp: LightPrim) -> tuple[int, tuple[float, float], float]:
+    """(shape code, half sizes (m), radiance per cd along the axis (m^-2)) of a light.
+
+    Code ``AREA_POINT`` (point model) for ``treatAsPoint``, mesh lights and a zero
+    projected area; otherwise the light is integrated over its area."""
+    kind = _AREA_KINDS.get(lp.type, sc.AREA_POINT)
+    if lp.treat_as_point or kind == sc.AREA_POINT:
+        return sc.AREA_POINT, (0.0, 0.0), 0.0
+    if kind == sc.AREA_RECT:
+        size, proj = (0.5 * lp.width, 0.5 * lp.height), lp.width * lp.height
+    elif kind == sc.AREA_CYLINDER:
+        size, proj = (0.5 * lp.length, lp.radius), 2.0 * lp.radius * lp.length
+    else:
+        size, proj = (lp.radius, lp.radius), math.pi * lp.radius**2
+    if not (proj > 0.0 and math.isfinite(proj)):
+        return sc.AREA_POINT, (0.0, 0.0), 0.0
+    return kind, size, 1.0 / proj
 
 
 class LightTable:
@@ -182,6 +216,10 @@ class LightTable:
         c["shadow_falloff_gamma"][row] = lp.shadow_falloff_gamma
         c["radius"][row] = lp.radius
         c["angle"][row] = lp.angle
+        kind, size, rad = area_shape(lp)
+        c["area_kind"][row] = kind
+        c["area_size"][row] = size
+        c["area_radiance"][row] = rad
         self.version += 1
         c["version"][row] = self.version
 

@@ -64,6 +64,8 @@ LIGHT_LAYOUT: tuple[tuple[str, tuple[str, str, str, str]], ...] = (
     ("ies_shadow", ("ies_scale", "ies_angle_scale", "shadow_map", "shadow_flags")),
     ("shadow_color", ("shadow_color", "shadow_color", "shadow_color", "shadow_distance")),
     ("misc", ("shadow_falloff", "shadow_falloff_gamma", "diffuse", "specular")),
+    # Area lights (issue 20, common/area.glsl): half sizes (m), shape code, radiance/cd.
+    ("area", ("area_size_x", "area_size_y", "area_kind", "area_radiance")),
 )
 
 
@@ -77,9 +79,9 @@ def _light_columns() -> dict[str, int]:
 
 #: First float column of each light-record field (a vector spans 3 columns).
 LIGHT_COLUMNS: dict[str, int] = _light_columns()
-LIGHT_RECORD_VEC4S = len(LIGHT_LAYOUT)  # 9
-LIGHT_STRIDE_FLOATS = 4 * LIGHT_RECORD_VEC4S  # 36
-LIGHT_STRIDE_BYTES = 4 * LIGHT_STRIDE_FLOATS  # 144
+LIGHT_RECORD_VEC4S = len(LIGHT_LAYOUT)  # 10
+LIGHT_STRIDE_FLOATS = 4 * LIGHT_RECORD_VEC4S  # 40
+LIGHT_STRIDE_BYTES = 4 * LIGHT_STRIDE_FLOATS  # 160
 
 LIGHT_COL_POSITION = LIGHT_COLUMNS["position"]  # 0:3
 LIGHT_COL_RANGE = LIGHT_COLUMNS["range"]  # 3
@@ -105,6 +107,18 @@ LIGHT_COL_SHADOW_FALLOFF = LIGHT_COLUMNS["shadow_falloff"]  # 32
 LIGHT_COL_SHADOW_FALLOFF_GAMMA = LIGHT_COLUMNS["shadow_falloff_gamma"]  # 33
 LIGHT_COL_DIFFUSE = LIGHT_COLUMNS["diffuse"]  # 34
 LIGHT_COL_SPECULAR = LIGHT_COLUMNS["specular"]  # 35
+LIGHT_COL_AREA_SIZE_X = LIGHT_COLUMNS["area_size_x"]  # 36
+LIGHT_COL_AREA_SIZE_Y = LIGHT_COLUMNS["area_size_y"]  # 37
+LIGHT_COL_AREA_KIND = LIGHT_COLUMNS["area_kind"]  # 38
+LIGHT_COL_AREA_RADIANCE = LIGHT_COLUMNS["area_radiance"]  # 39
+
+#: Area shape codes (``area_kind``): 0 = lit with the point model (treatAsPoint, zero
+#: size, mesh lights), else the emitter integrated over its area (common/area.glsl).
+AREA_POINT = 0
+AREA_RECT = 1
+AREA_DISK = 2
+AREA_SPHERE = 3
+AREA_CYLINDER = 4
 
 #: Index columns (IES layer, shadow map) holding "none".
 LIGHT_INDEX_NONE = -1.0
@@ -145,6 +159,9 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
         "LIM_TERM_SHARE_REL_DISTANCE": f"{limits.STB_TERM_SHARE_REL_DISTANCE:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
+        "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
+        "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
+        "LIM_PCSS_MAX_TEXELS": f"{limits.PCSS_MAX_TEXELS:.1f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),
@@ -161,6 +178,11 @@ def _glsl_constants() -> dict[str, str]:
         "EMIT_ISOTROPIC": repr(float(prims.EMIT_ISOTROPIC)),
         "EMIT_COSINE": repr(float(prims.EMIT_COSINE)),
         "EMIT_CYLINDER": repr(float(prims.EMIT_CYLINDER)),
+        "AREA_POINT": repr(float(AREA_POINT)),
+        "AREA_RECT": repr(float(AREA_RECT)),
+        "AREA_DISK": repr(float(AREA_DISK)),
+        "AREA_SPHERE": repr(float(AREA_SPHERE)),
+        "AREA_CYLINDER": repr(float(AREA_CYLINDER)),
         "CONE_CUTOFF_TEST_RAD": repr(prims.CONE_CUTOFF_TEST_RAD),
         "INTERLEAVE_FOOTPRINT_PX": str(INTERLEAVE_FOOTPRINT_PX),
         "INTERLEAVE_QUADS_PER_SIDE": str(INTERLEAVE_QUADS_PER_SIDE),

@@ -10,6 +10,9 @@ Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
 * Far field: sphere I = L pi r^2 (isotropic); disk I0 = L pi r^2 and rect
   I0 = L w h with a one-sided cosine lobe about the -Z axis; cylinder
   I0 = L 2 r l times sin(angle to its X axis); ``treatAsPoint`` keeps the radius.
+  Near field (issue 20, shaders/common/area.glsl): sphere, disk, rect and cylinder
+  lights are shaded as areas of uniform radiance L (``LightPrim.treat_as_point``
+  sphere lights with the point model); the far-field numbers above are their limit.
 * ShapingAPI: cone cut-off/softness/focus/focusTint about -Z, IES sampled at the
   light-space polar angle from -Z (nadir) after ``angleScale``; the profile
   value is a factor on L (divided by the profile power when normalised).
@@ -584,6 +587,7 @@ def _emission_and_area(
     t = lp.type
     area = 1.0
     if t == prims.SPHERE_LIGHT:
+        lp.treat_as_point = bool(prim.GetAttribute("treatAsPoint").Get() or False)
         lp.emission = prims.EMIT_ISOTROPIC
         proj = math.pi * lp.radius**2
         area = 4.0 * math.pi * lp.radius**2
@@ -611,12 +615,6 @@ def _emission_and_area(
             lp.position = c
     else:
         proj = 1.0
-    if t in (prims.DISK_LIGHT, prims.RECT_LIGHT, prims.CYLINDER_LIGHT):
-        ctx.warn_once(
-            "area",
-            f"light <{lp.path}>: disk/rect/cylinder lights are lit as punctual lights "
-            "with their far-field intensity distribution (one warning per stage)",
-        )
     return proj, area
 
 
@@ -921,3 +919,20 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         avg = np.ones(3)
     _dome_avg_cache[resolved] = avg
     return avg
+
+
+def area_half_extent(lp: LightPrim) -> float:
+    """Half extent (m) of a light shaded as an area (issue 20, shaders/common/area.glsl):
+    radius of a sphere or disk, half the diagonal of a rect, the larger of a cylinder's
+    half length and radius; 0 for the point model (``treatAsPoint``, mesh, distant and
+    dome lights)."""
+    t = lp.type
+    if t == prims.SPHERE_LIGHT:
+        return 0.0 if lp.treat_as_point else float(lp.radius)
+    if t == prims.DISK_LIGHT:
+        return float(lp.radius)
+    if t == prims.RECT_LIGHT:
+        return 0.5 * math.hypot(lp.width, lp.height)
+    if t == prims.CYLINDER_LIGHT:
+        return max(0.5 * lp.length, float(lp.radius))
+    return 0.0

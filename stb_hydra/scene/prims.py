@@ -111,6 +111,8 @@ class LightPrim:
     width: float = 0.0
     height: float = 0.0
     length: float = 0.0
+    #: SphereLight ``treatAsPoint``: lit with the point model (no area integration).
+    treat_as_point: bool = False
     # ShapingAPI.
     has_cone: bool = False
     cone_angle: float = NO_CONE_ANGLE_DEG  # degrees, half angle

@@ -7,8 +7,10 @@ area-weighted (every instance of instanced geometry included), and count at each
 point the enabled local lights that
 
 * have the point inside their influence sphere (``LightPrim.range``, metres), and
-* face it: the point is in front of the surface (both sides for double-sided
-  meshes) and inside the light's emission (cone half-angle for shaped lights, front
+* face it: some of the light is in front of the surface (both sides for double-sided
+  meshes) -- area lights (issue 20) reach a point while any of their area is above its
+  horizon: the centre may be up to the light's half extent below it -- and the point
+  is inside the light's emission (cone half-angle for shaped lights, front
   hemisphere for disk/rect emitters).
 
 A count above VALIDATE_STB_OVERLAP_MAX gives one warning per mesh, at its worst
@@ -24,6 +26,7 @@ from pxr import Usd
 
 from .. import limits
 from ..scene import prims
+from ..scene.lights import area_half_extent
 from .analysis import StageAnalysis, analysis_for
 from .common import finding
 from .findings import Finding
@@ -101,6 +104,7 @@ def overlap_counts(
         ]
     )
     front = np.array([lp.emission == prims.EMIT_COSINE for lp in lights])
+    ext = np.array([area_half_extent(lp) for lp in lights], dtype=np.float64)
     out = np.zeros(len(points), dtype=np.int64)
     for s in range(0, len(points), _CHUNK):
         p = points[s : s + _CHUNK, None, :]
@@ -112,7 +116,11 @@ def overlap_counts(
         ok &= cos_axis >= cone_cos[None]
         ok &= ~front[None] | (cos_axis > 0.0)
         facing = -np.einsum("nlk,nk->nl", d, normals[s : s + _CHUNK])
-        ok &= np.where(double_sided[s : s + _CHUNK, None], facing != 0.0, facing > 0.0)
+        ok &= np.where(
+            double_sided[s : s + _CHUNK, None],
+            (facing != 0.0) | (ext[None] > 0.0),
+            facing > -ext[None],
+        )
         out[s : s + _CHUNK] = ok.sum(axis=1)
     return out
 

@@ -1,0 +1,196 @@
+// Area lights (issue 20): rect, disk, sphere and cylinder lights of uniform radiance
+// integrated over the part of their emitting surface a shading point sees.
+//
+// Diffuse: the exact irradiance of a polygon (Lambert's contour integral, each edge
+// clipped to the surface's horizon). The rect is its own polygon; the disk rim, the
+// sphere's silhouette circle and the cylinder's visible strip (two silhouette lines and
+// the two near half-rims) are polygons of LIM_AREA_POLY_VERTS vertices scaled to keep
+// their area. Specular (GGX): still the point model (the centre's direction and the
+// far-field intensity); the representative-point method (Karis 2013) and a lobe widened
+// by the light's angular size were measured and were worse on rough surfaces and not
+// reliably better on smooth ones (docs/area_lights/README.md). LTC is the next step.
+//
+// Shaping (cone, focus, focusTint, IES) is evaluated once per shading point, towards
+// the point from the light's centre, and multiplies the area's radiance: far from the
+// light this is exactly the point model's intensity distribution (I0 x emission x
+// shaping). A light whose half extent is below LIM_AREA_POINT_RATIO of its distance,
+// a treatAsPoint sphere, a mesh light and a zero-size light use the point model.
+#ifndef STB_AREA_GLSL
+#define STB_AREA_GLSL
+#include "common/brdf.glsl"
+
+#define AREA_MAXV (2 * LIM_AREA_POLY_VERTS + 2)
+
+vec3 light_bitangent(Light L) { return cross(-L.axis_emit.xyz, L.tangent_type.xyz); }
+
+// Half extent of the light (m): the radius of a disk or sphere, half the diagonal of a
+// rect, half the length of a cylinder (0 for the point model).
+float light_half_extent(Light L) {
+    if (L.area.z == AREA_POINT) return 0.0;
+    if (L.area.z == AREA_RECT) return length(L.area.xy);
+    if (L.area.z == AREA_CYLINDER) return max(L.area.x, L.area.y);
+    return L.area.x;
+}
+
+// Half axes (m, world) of the disk with the light's area as seen along -ldir (unit,
+// from the receiver towards the light): the shape its soft shadows use (PCSS in
+// common/shadow.glsl). Rect and cylinder: their axes scaled to the equal-area ellipse.
+void light_shadow_axes(Light L, vec3 ldir, out vec3 A, out vec3 B) {
+    vec3 X = L.tangent_type.xyz;
+    const float k = 1.1283792;  // 2 / sqrt(pi): square of half side 1 -> disk of equal area
+    if (L.area.z == AREA_RECT) { A = X * L.area.x * k; B = light_bitangent(L) * L.area.y * k; return; }
+    if (L.area.z == AREA_DISK) { A = X * L.area.x; B = light_bitangent(L) * L.area.x; return; }
+    vec3 side = cross(X, ldir);
+    if (L.area.z == AREA_CYLINDER && dot(side, side) > 1e-6) {
+        A = X * L.area.x * k; B = normalize(side) * L.area.y * k; return;
+    }
+    vec3 u = normalize(abs(ldir.y) < 0.9 ? cross(ldir, vec3(0.0, 1.0, 0.0)) : cross(ldir, vec3(1.0, 0.0, 0.0)));
+    float r = L.area.z == AREA_CYLINDER ? L.area.y : L.area.x;
+    A = u * r; B = cross(ldir, u) * r;
+}
+
+bool light_is_area(Light L, float dist) {
+    return L.area.z != AREA_POINT && light_half_extent(L) > LIM_AREA_POINT_RATIO * dist;
+}
+
+// Vertices (relative to the shading point P) of the region of the light P sees; 0 when
+// it sees none of its emitting surface (behind a one-sided emitter, inside a sphere or
+// tube).
+int area_polygon(Light L, vec3 P, out vec3 v[AREA_MAXV]) {
+    const int M = LIM_AREA_POLY_VERTS;
+    vec3 c = L.pos_range.xyz - P;          // light centre relative to P
+    vec3 X = L.tangent_type.xyz;
+    vec3 Y = light_bitangent(L);
+    vec3 Z = L.axis_emit.xyz;              // emission axis (light -Z)
+    float kind = L.area.z;
+    // Polygon of M vertices with the area of its circumscribed circle.
+    float grow = sqrt(2.0 * PI / (float(M) * sin(2.0 * PI / float(M))));
+    if (kind == AREA_RECT || kind == AREA_DISK) {
+        if (dot(-c, Z) <= 0.0) return 0;   // behind the emitting face (or in its plane)
+        if (kind == AREA_RECT) {
+            vec3 hx = X * L.area.x, hy = Y * L.area.y;
+            v[0] = c - hx - hy; v[1] = c + hx - hy; v[2] = c + hx + hy; v[3] = c - hx + hy;
+            return 4;
+        }
+        float r = L.area.x * grow;
+        for (int k = 0; k < M; ++k) {
+            float a = 2.0 * PI * float(k) / float(M);
+            v[k] = c + r * (cos(a) * X + sin(a) * Y);
+        }
+        return M;
+    }
+    if (kind == AREA_SPHERE) {
+        float d = length(c);
+        float r = L.area.x;
+        if (d <= r * 1.0001) return 0;     // inside: sees the emitter's back faces
+        vec3 a = c / d;
+        vec3 u = normalize(abs(a.y) < 0.9 ? cross(a, vec3(0.0, 1.0, 0.0)) : cross(a, vec3(1.0, 0.0, 0.0)));
+        vec3 w = cross(a, u);
+        vec3 cc = a * (d - r * r / d);    // centre of the silhouette circle
+        float rho = r * sqrt(max(1.0 - r * r / (d * d), 0.0)) * grow;
+        for (int k = 0; k < M; ++k) {
+            float t = 2.0 * PI * float(k) / float(M);
+            v[k] = cc + rho * (cos(t) * u + sin(t) * w);
+        }
+        return M;
+    }
+    // Cylinder along X, half length area.x, radius area.y: the visible side strip.
+    float h = L.area.x, r = L.area.y;
+    vec3 q = -c;                           // P relative to the centre
+    float t = dot(q, X);
+    vec3 qr = q - t * X;
+    float rho = length(qr);
+    if (rho <= r * 1.0001) return 0;       // inside the tube or on its axis: back faces
+    vec3 e = qr / rho;
+    vec3 f = cross(X, e);
+    float phi0 = acos(r / rho);            // silhouette generators at +-phi0
+    int K = M / 2;
+    for (int k = 0; k < K; ++k) {
+        float a = -phi0 + 2.0 * phi0 * float(k) / float(K - 1);
+        vec3 rim = r * (cos(a) * e + sin(a) * f);
+        v[k] = c - h * X + rim;            // near half-rim at -h, from -phi0 to +phi0
+        v[2 * K - 1 - k] = c + h * X + rim;  // near half-rim at +h, back from +phi0
+    }
+    return 2 * K;
+}
+
+// Sutherland-Hodgman: keep the part of the polygon above the plane dot(N, x) = 0.
+int clip_horizon(inout vec3 v[AREA_MAXV], int n, vec3 N) {
+    vec3 o[AREA_MAXV];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        vec3 a = v[i], b = v[(i + 1) % n];
+        float da = dot(N, a), db = dot(N, b);
+        if (da >= 0.0 && m < AREA_MAXV) o[m++] = a;
+        if ((da >= 0.0) != (db >= 0.0) && m < AREA_MAXV) o[m++] = a + (b - a) * (da / (da - db));
+    }
+    for (int i = 0; i < m; ++i) v[i] = o[i];
+    return m;
+}
+
+// Form factor of a polygon (relative to P) for a surface of unit normal N, horizon
+// clipped: irradiance / (pi x radiance), in [0, 1].
+float polygon_form_factor(vec3 v[AREA_MAXV], int n, vec3 N) {
+    n = clip_horizon(v, n, N);
+    if (n < 3) return 0.0;
+    float sum = 0.0;
+    vec3 a = normalize(v[n - 1]);
+    for (int i = 0; i < n; ++i) {
+        vec3 b = normalize(v[i]);
+        vec3 cr = cross(a, b);
+        float s = length(cr);
+        float th = atan(s, dot(a, b));
+        sum += dot(cr, N) * (s > 1e-9 ? th / s : 1.0);
+        a = b;
+    }
+    return min(abs(sum) / (2.0 * PI), 1.0);
+}
+
+// Unshadowed radiance reflected towards s.V by light L, diffuse and specular parts
+// (nits, before the light's diffuse/specular multipliers), WITHOUT the scalar shape
+// (cone x normalised IES) -- the caller multiplies by light_shape_scalar(L, -Ldir).
+// Ldir: unit direction from P to the light's centre. False when the light cannot
+// reach P (out of range, behind a one-sided emitter, nothing visible).
+bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 spec) {
+    diff = vec3(0.0); spec = vec3(0.0);
+    float dist;
+    float f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return false;
+    if (!light_is_area(L, dist)) {
+        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+        brdf_eval(s, Ldir, diff, spec);
+        diff *= E; spec *= E;
+        return true;
+    }
+    vec3 v[AREA_MAXV];
+    int n = area_polygon(L, s.P, v);
+    if (n == 0) return false;
+    float window = range_window(dist, L.pos_range.w);
+    // Radiance x focus tint x IES scale (no emission model: the polygon integrates it).
+    vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
+    float F = polygon_form_factor(v, n, s.N);
+    diff = s.diffuse * Lrad * F;
+    // Specular: the point model (the centre's direction, the far-field illuminance).
+    // Measured against a quadrature of the same GGX lobe over the light (docs/area_lights):
+    // unbiased in the mean for roughness >= 0.4, per-pixel errors 1-45 %; smooth surfaces
+    // need LTC (not done).
+    vec3 dsp, ssp;
+    brdf_eval(s, Ldir, dsp, ssp);
+    spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    return true;
+}
+
+// Luminance of the unshadowed irradiance (lux) the light gives a surface (P, N), for
+// STB's targets: the area integral for area lights, Ev x cos for the point model.
+// Ev: the point model's facing illuminance luminance (the caller's), Ldir its direction.
+float light_target_irradiance(Light L, vec3 P, vec3 N, vec3 Ldir, float dist, float Ev) {
+    if (!light_is_area(L, dist)) return Ev * max(dot(N, Ldir), 0.0);
+    vec3 v[AREA_MAXV];
+    int n = area_polygon(L, P, v);
+    if (n == 0) return 0.0;
+    float em = L.axis_emit.w == EMIT_ISOTROPIC ? 1.0 : max(emission_shape(L, -Ldir), 1e-6);
+    float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
+    // Ev = I0 em shape window / r^2 = L proj em shape window / r^2.
+    return Ev * r * r * L.area.w / em * PI * polygon_form_factor(v, n, N);
+}
+#endif

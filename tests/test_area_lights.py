@@ -1,0 +1,301 @@
+"""Area lights (issue 20): rect, disk, sphere and cylinder lights shaded as areas.
+
+* closed forms (no Mitsuba needed): a rect and a disk parallel to a Lambertian floor,
+  every floor pixel against the exact form factor, horizon cut included for a sphere;
+* Mitsuba 3 (``scalar_rgb``, tests/mitsuba_ref.py) as an independent renderer on small
+  floor scenes, one light of each type, per-pixel relative error;
+* STB stays unbiased on area lights (64 frames, no weight cap, against its reference).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from area_scenes import area_stage, area_stage_no_box, many_area_lights_stage
+from stagegen import LAMBERT_FLOOR_USDA, plane_points, usda_stage
+
+import stb_hydra
+
+RHO = 0.5
+W, H = 96, 54
+
+
+def _floor(light: str, w: int = W, h: int = H) -> tuple:
+    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=light))
+    img = stb_hydra.render(stage, width=w, height=h, lighting="reference", shadows=False)
+    return stage, img[..., 1].astype(np.float64)
+
+
+def _rect_corner_ff(a: np.ndarray, b: np.ndarray, h: float) -> np.ndarray:
+    """Form factor from a floor point to an a x b rectangle parallel to it at height h,
+    one corner straight above the point (a, b signed: the sign flips the result)."""
+    sa, sb = np.sign(a), np.sign(b)
+    a, b = np.abs(a), np.abs(b)
+    A, B = a / h, b / h
+    f = (A / np.sqrt(1 + A * A) * np.arctan(B / np.sqrt(1 + A * A))) + (
+        B / np.sqrt(1 + B * B) * np.arctan(A / np.sqrt(1 + B * B))
+    )
+    return sa * sb * f / (2 * math.pi)
+
+
+def test_rect_light_matches_closed_form():
+    """1 m x 0.5 m rect, 0.6 m above the floor facing down: L rho F per pixel, F the
+    exact parallel-rectangle form factor (four corner rectangles). The point model was
+    +54 % under the lamp."""
+    h, w, d, L = 0.6, 1.0, 0.5, 1000.0
+    light = (
+        f'def RectLight "L" {{\n    float inputs:intensity = {L}\n    float inputs:specular = 0\n'
+        f"    float inputs:width = {w}\n    float inputs:height = {d}\n"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n    float xformOp:rotateX = -90\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+    )
+    stage, img = _floor(light)
+    p = plane_points(stage, W, H)
+    x, z = p[..., 0], p[..., 2]
+    # rotateX -90: light +X = world +X (width), light +Y = world -Z (height).
+    F = sum(
+        _rect_corner_ff(sx * w / 2 - x, sz * d / 2 - z, h) * sx * sz
+        for sx in (-1, 1)
+        for sz in (-1, 1)
+    )
+    expect = RHO * L * F
+    m = expect > 0.01 * expect.max()
+    rel = np.abs(img[m] - expect[m]) / expect[m]
+    assert np.median(rel) < 2e-3 and rel.max() < 1e-2, (np.median(rel), rel.max())
+
+
+def test_disk_light_matches_closed_form():
+    """0.3 m disk 0.5 m above the floor: F = (1 - (h^2 + a^2 - r^2) /
+    sqrt((h^2 + a^2 + r^2)^2 - 4 a^2 r^2)) / 2 at horizontal offset a. The 16-gon
+    (area-preserving) stays within 0.5 % everywhere."""
+    h, r, L = 0.5, 0.3, 1000.0
+    light = (
+        f'def DiskLight "L" {{\n    float inputs:intensity = {L}\n'
+        f"    float inputs:specular = 0\n    float inputs:radius = {r}\n"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n    float xformOp:rotateX = -90\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+    )
+    stage, img = _floor(light)
+    p = plane_points(stage, W, H)
+    a2 = p[..., 0] ** 2 + p[..., 2] ** 2
+    F = 0.5 * (1 - (h * h + a2 - r * r) / np.sqrt((h * h + a2 + r * r) ** 2 - 4 * a2 * r * r))
+    expect = RHO * L * F
+    m = expect > 0.01 * expect.max()
+    rel = np.abs(img[m] - expect[m]) / expect[m]
+    assert np.median(rel) < 2e-3 and rel.max() < 5e-3, (np.median(rel), rel.max())
+
+
+def test_sphere_cut_by_floor_matches_closed_form():
+    """A 0.5 m sphere whose centre is 0.3 m above the floor: the floor's plane cuts it.
+    Outside it, F is the exact horizon-clipped sphere (Snyder 1996: a point at
+    horizontal distance a from the centre's foot sees a cap of half angle asin(r/d))."""
+    h, r, L = 0.3, 0.5, 1000.0
+    light = (
+        f'def SphereLight "L" {{\n    float inputs:intensity = {L}\n'
+        f"    float inputs:specular = 0\n    float inputs:radius = {r}\n"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    stage, img = _floor(light)
+    p = plane_points(stage, W, H)
+    a = np.hypot(p[..., 0], p[..., 2])
+    d = np.hypot(a, h)
+    alpha = np.arcsin(np.clip(r / d, 0, 1))  # cap half angle
+    beta = np.arccos(np.clip(h / d, -1, 1))  # centre's angle from the normal
+    # Snyder's horizon-clipped cap irradiance / (pi L) (Lagarde & de Rousiers 2014,
+    # eq. 18); our shader integrates the silhouette as a polygon, independently.
+    s2 = np.sin(alpha) ** 2
+    x = np.sqrt(np.maximum(1.0 / s2 - 1.0, 0.0))
+    y = np.clip(-x * np.cos(beta) / np.sin(beta), -1, 1)
+    sy = np.sin(beta) * np.sqrt(1 - y * y)
+    clipped = ((np.cos(beta) * np.arccos(y) - x * sy) * s2 + np.arctan(sy / x)) / math.pi
+    full = np.cos(beta) * s2
+    F = np.where(beta + alpha <= math.pi / 2, full, clipped)
+    expect = RHO * L * F
+    m = (d > r * 1.05) & (expect > 0.01 * expect.max())
+    rel = np.abs(img[m] - expect[m]) / expect[m]
+    assert np.median(rel) < 3e-3 and np.percentile(rel, 99) < 1e-2, (
+        np.median(rel),
+        np.percentile(rel, 99),
+    )
+
+
+def test_cylinder_light_matches_quadrature():
+    """1.2 m x 0.1 m tube 0.5 m up, turned 20 degrees: against a 100 x 100 midpoint
+    quadrature of its side (L cos_e cos_r / d^2 dA over the front-facing part)."""
+    h, r, ln, L, rot = 0.5, 0.1, 1.2, 1000.0, 20.0
+    light = (
+        f'def CylinderLight "L" {{\n    float inputs:intensity = {L}\n'
+        f"    float inputs:specular = 0\n    float inputs:radius = {r}\n"
+        f"    float inputs:length = {ln}\n"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n    float xformOp:rotateY = {rot}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateY"]\n}\n'
+    )
+    stage, img = _floor(light, 64, 36)
+    p = plane_points(stage, 64, 36).reshape(-1, 3)
+    nu = nphi = 100
+    u = (np.arange(nu) + 0.5) / nu * ln - ln / 2
+    ph = (np.arange(nphi) + 0.5) / nphi * 2 * np.pi
+    c, s = math.cos(math.radians(rot)), math.sin(math.radians(rot))
+    X, Y = np.array([c, 0, -s]), np.array([0.0, 1.0, 0.0])
+    Z = np.cross(X, Y)
+    U, PH = np.meshgrid(u, ph, indexing="ij")
+    n = (np.cos(PH)[..., None] * Y + np.sin(PH)[..., None] * Z).reshape(-1, 3)
+    pos = np.array([0, h, 0]) + U.reshape(-1, 1) * X + r * n
+    dA = (ln / nu) * (2 * np.pi * r / nphi)
+    E = np.zeros(len(p))
+    for i in range(0, len(p), 256):
+        d = pos[None] - p[i : i + 256, None]
+        dn = np.sqrt((d * d).sum(-1))
+        ce = np.maximum(-(d * n[None]).sum(-1) / dn, 0)
+        E[i : i + 256] = (L * ce * np.maximum(d[..., 1] / dn, 0) / dn**2).sum(-1) * dA
+    expect = (RHO / np.pi * E).reshape(36, 64)
+    m = expect > 0.01 * expect.max()
+    rel = np.abs(img[m] - expect[m]) / expect[m]
+    assert np.median(rel) < 3e-3 and np.percentile(rel, 95) < 1.5e-2, (
+        np.median(rel),
+        np.percentile(rel, 95),
+    )
+
+
+def test_point_threshold_error():
+    """A light smaller than limits.AREA_POINT_RATIO of its distance uses the point
+    model; on a disk's axis the point model is off by r^2/d^2 <= 0.09 % there."""
+    from stb_hydra import limits
+
+    q = limits.AREA_POINT_RATIO
+    exact = 1.0 / (1.0 + q * q)  # disk: pi L r^2 / (d^2 + r^2) vs point pi L r^2 / d^2
+    assert 1.0 / exact - 1.0 < 1e-3
+
+
+# --- Mitsuba 3: an independent renderer ------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kind", "spp"), [("rect", 32), ("disk", 32), ("sphere", 32), ("cylinder", 96)]
+)
+def test_area_light_against_mitsuba_unshadowed(kind, spp):
+    """Floor without the box, one area light: per-pixel relative error against Mitsuba
+    (spp x 32 light samples per pixel; Mitsuba samples the cylinder's whole surface, so it
+    needs 3x the samples for the same ~1 % noise per pixel)."""
+    mr = pytest.importorskip("mitsuba_ref")
+    stage = area_stage_no_box(kind)
+    ref, hit, light, nrm = mr.render_mitsuba(stage, 80, 45, spp, emitter_samples=32)
+    ours = stb_hydra.render(stage, width=80, height=45, lighting="reference")
+    err, mask, _ = mr.compare(ours, ref, hit, light, nrm)
+    assert mask.sum() > 300
+    # Mitsuba samples the cylinder by area (heavy-tailed noise near the tube): looser
+    # there; test_cylinder_light_matches_quadrature holds ours to 0.3 %.
+    tol = (0.03, 0.08) if kind == "cylinder" else (0.02, 0.06)
+    assert np.median(err) < tol[0] and np.percentile(err, 95) < tol[1], (
+        np.median(err),
+        np.percentile(err, 95),
+    )
+    ratio = np.median(mr.luminance(ours)[mask] / mr.luminance(ref)[mask])
+    assert abs(ratio - 1) < (0.02 if kind == "cylinder" else 0.01), ratio
+
+
+@pytest.mark.parametrize("kind", ["point", "spot"])
+def test_point_and_spot_against_mitsuba(kind):
+    """treatAsPoint sphere lights (and a hard cone) keep the point model: median 0.1 %."""
+    mr = pytest.importorskip("mitsuba_ref")
+    stage = area_stage(kind)
+    # Mitsuba averages over each pixel, ours shades its centre: 128 x 72 keeps that
+    # difference (second order in the pixel size) under 0.1 %.
+    ref, hit, light, nrm = mr.render_mitsuba(stage, 128, 72, 256)
+    ours = stb_hydra.render(stage, width=128, height=72, lighting="reference")
+    err, mask, _ = mr.compare(ours, ref, hit, light, nrm)
+    assert mask.sum() > 200
+    assert np.median(err) < 1e-3, np.median(err)
+
+
+# --- STB ------------------------------------------------------------------------------------
+
+
+def test_stb_unbiased_on_area_lights():
+    """24 area lights of all four types: 64 STB frames (no weight cap) against the
+    reference (relMSE <= 5e-3) -- the targets use the area irradiance, so a light whose
+    centre is below a point's horizon but part of whose area is above stays sampled."""
+    from stb_hydra.metrics.image import relmse
+
+    stage = many_area_lights_stage()
+    w, h = 128, 72
+    ref = stb_hydra.render(stage, width=w, height=h, lighting="reference")
+    opts = dict(weight_cap=None, N=4, K=64, big_tile=32, shadow_res="pixel")
+    img = stb_hydra.render(stage, width=w, height=h, lighting="stb", accumulate=64, **opts)
+    e = relmse(img, ref)
+    assert e <= 5e-3, e
+    # Image mean at 64 frames: 1.011 (seed 0), 1.002 (seed 1); 1.005 at 256 frames, where
+    # relMSE falls to 5.6e-4 (~1/M): noise of a few rarely picked lights, not a bias
+    # the relMSE would show.
+    assert abs(img.mean() / ref.mean() - 1.0) < 0.02, img.mean() / ref.mean()
+
+
+# --- stb validate ---------------------------------------------------------------------------
+
+
+def test_noise_risk_counts_area_lights_reaching_over_the_horizon():
+    """A 1 m rect whose centre is 0.2 m below a floor point's horizon still lights the
+    point (part of its area is above): the overlap count uses the area model; a point
+    light at the same place does not reach it."""
+    from stb_hydra.scene import prims
+    from stb_hydra.validate.rules_overlap import overlap_counts
+
+    rect = prims.LightPrim(path="/R", type=prims.RECT_LIGHT)
+    rect.position = np.array([0.0, -0.2, 1.0])
+    rect.direction = np.array([0.0, 0.0, -1.0])  # faces the point at the origin
+    rect.width = rect.height = 1.0
+    rect.emission = prims.EMIT_COSINE
+    rect.range = 10.0
+    point = prims.LightPrim(path="/P", type=prims.SPHERE_LIGHT, treat_as_point=True)
+    point.position = rect.position
+    point.range = 10.0
+    pts = np.zeros((1, 3))
+    nrm = np.array([[0.0, 1.0, 0.0]])
+    ds = np.array([False])
+    assert overlap_counts(pts, nrm, ds, [rect]).tolist() == [1]
+    assert overlap_counts(pts, nrm, ds, [point]).tolist() == [0]
+
+
+# --- normalize, colour temperature, cone ---------------------------------------------------
+
+
+def _disk(extra: str, r: float = 0.3, h: float = 0.5, L: float = 1000.0) -> str:
+    return (
+        f'def DiskLight "L" (\n    prepend apiSchemas = ["ShapingAPI"]\n) {{\n'
+        f"    float inputs:intensity = {L}\n    float inputs:specular = 0\n"
+        f"    float inputs:radius = {r}\n{extra}"
+        f"    double3 xformOp:translate = (0, {h}, 0)\n    float xformOp:rotateX = -90\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+    )
+
+
+def test_normalize_and_colour_temperature_scale_the_area_radiance():
+    """normalize divides the radiance by the area (pi r^2); 6500 K is white: the area
+    image is the plain one scaled, pixel for pixel."""
+    _, plain = _floor(_disk(""))
+    _, norm = _floor(_disk("    bool inputs:normalize = 1\n"))
+    _, warm = _floor(
+        _disk(
+            "    bool inputs:enableColorTemperature = 1\n    float inputs:colorTemperature = 6500\n"
+        )
+    )
+    m = plain > 0.01 * plain.max()
+    np.testing.assert_allclose(norm[m] * math.pi * 0.3**2, plain[m], rtol=2e-3)
+    np.testing.assert_allclose(warm[m], plain[m], rtol=2e-3)
+
+
+def test_cone_shapes_an_area_light_from_its_centre():
+    """Shaping on an area light is evaluated towards the point from the light's centre
+    (docs/area_lights/README.md): inside a hard 30 degree cone the image is the unshaped
+    area result, outside it black."""
+    stage, plain = _floor(_disk(""))
+    _, cone = _floor(_disk("    float inputs:shaping:cone:angle = 30\n"))
+    p = plane_points(stage, W, H)
+    theta = np.degrees(np.arctan2(np.hypot(p[..., 0], p[..., 2]), 0.5))
+    inside = (theta < 28) & (plain > 0.01 * plain.max())
+    outside = theta > 32
+    np.testing.assert_allclose(cone[inside], plain[inside], rtol=2e-3)
+    assert np.all(cone[outside] == 0.0)
