@@ -101,7 +101,7 @@ void main() {
             vec3 H = normalize(pts[k].V + Ldir);
             float NoH = max(dot(pts[k].N, H), 0.0);
             float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
-            float V = luminance(local_shadow(L, pts[k].P, pts[k].N));
+            float V = luminance(local_shadow_hard(L, pts[k].P, pts[k].N));
             // Area irradiance for the diffuse part (issue 20): positive wherever the
             // light reaches the point, so Ev x eps keeps the target positive there.
             ph += V * (kd / PI * Ea + Ev * ks * spec_norm * pow(NoH, spec_n) * NoL) + Ev * fv * u_eps;

@@ -184,13 +184,15 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
 // STB's targets: the area integral for area lights, Ev x cos for the point model.
 // Ev: the point model's facing illuminance luminance (the caller's), Ldir its direction.
 float light_target_irradiance(Light L, vec3 P, vec3 N, vec3 Ldir, float dist, float Ev) {
-    if (!light_is_area(L, dist)) return Ev * max(dot(N, Ldir), 0.0);
-    vec3 v[AREA_MAXV];
-    int n = area_polygon(L, P, v);
-    if (n == 0) return 0.0;
-    float em = L.axis_emit.w == EMIT_ISOTROPIC ? 1.0 : max(emission_shape(L, -Ldir), 1e-6);
-    float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
-    // Ev = I0 em shape window / r^2 = L proj em shape window / r^2.
-    return Ev * r * r * L.area.w / em * PI * polygon_form_factor(v, n, N);
+    float NoL = dot(N, Ldir);
+    if (!light_is_area(L, dist)) return Ev * max(NoL, 0.0);
+    // A resampling target only needs to be roughly proportional and positive wherever
+    // the light can reach P: the cosine wrapped by the sine of the angular radius of a
+    // sphere of the light's half extent (its horizon-clipped irradiance, to first
+    // order) -- positive while any part of the light is above P's horizon, at a fraction
+    // of the cost of the polygon integral (the small-tile pass evaluates K x 4 of these
+    // per small tile).
+    float s = clamp(light_half_extent(L) / max(dist, LIM_MIN_LIGHT_DISTANCE), 0.0, 1.0);
+    return Ev * clamp((NoL + s) / (1.0 + s), 0.0, 1.0);
 }
 #endif

@@ -115,8 +115,10 @@ float shadow_pcss(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) 
     return v / float(PCSS_FILTER_TAPS);
 }
 
-// Returns the RGB transmission mix(shadow:color, 1, visibility).
-vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
+// Returns the RGB transmission mix(shadow:color, 1, visibility). soft: PCSS for lights
+// shaded as areas; false: one bilinear PCF gather for every light (STB's resampling
+// targets: an approximate visibility is all a target needs, at 1/24 of the taps).
+vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft) {
     int m = int(L.ies_shadow.z);
     if (m < 0) return vec3(1.0);
     ShadowMap S = shadow_maps[m];
@@ -147,9 +149,19 @@ vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
     // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
     vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
     // Soft shadows where the light is shaded as an area (same size rule as area.glsl).
-    float v = light_is_area(L, dist0) ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
-                                      : shadow_tap(L, S, t, ref, dist);
+    float v = soft && light_is_area(L, dist0)
+        ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
+        : shadow_tap(L, S, t, ref, dist);
     return mix(L.shadow_color.rgb, vec3(1.0), v);
+}
+
+vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
+    return local_shadow_impl(L, P, N, jitter, true);
+}
+
+// Hard (single-gather) visibility for resampling targets.
+vec3 local_shadow_hard(Light L, vec3 P, vec3 N) {
+    return local_shadow_impl(L, P, N, vec2(0.0), false);
 }
 
 vec3 local_shadow(Light L, vec3 P, vec3 N) {
@@ -168,6 +180,7 @@ vec3 local_shadow(Light L, vec3 P, vec3 N) {
 #else
 vec3 local_shadow(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) { return vec3(1.0); }
+vec3 local_shadow_hard(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 #endif
 
 // Shadowed radiance (nits) light L reflects towards s.V: the exact methods' per-light
