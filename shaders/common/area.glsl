@@ -187,12 +187,13 @@ float light_target_irradiance(Light L, vec3 P, vec3 N, vec3 Ldir, float dist, fl
     float NoL = dot(N, Ldir);
     if (!light_is_area(L, dist)) return Ev * max(NoL, 0.0);
     // A resampling target only needs to be roughly proportional and positive wherever
-    // the light can reach P: the cosine wrapped by the sine of the angular radius of a
-    // sphere of the light's half extent (its horizon-clipped irradiance, to first
-    // order) -- positive while any part of the light is above P's horizon, at a fraction
-    // of the cost of the polygon integral (the small-tile pass evaluates K x 4 of these
-    // per small tile).
-    float s = clamp(light_half_extent(L) / max(dist, LIM_MIN_LIGHT_DISTANCE), 0.0, 1.0);
-    return Ev * clamp((NoL + s) / (1.0 + s), 0.0, 1.0);
+    // the light can reach P. A sphere of the light's half extent (sine of its angular
+    // radius s): fully above the horizon its irradiance is exactly the point formula;
+    // across the horizon the usual C1 quadratic (NoL + s)^2 / 4s; below it 0 -- at a
+    // fraction of the polygon integral's cost (the small-tile pass evaluates K x 4 of
+    // these per small tile).
+    float s = clamp(light_half_extent(L) / max(dist, LIM_MIN_LIGHT_DISTANCE), 1e-4, 1.0);
+    float c = NoL >= s ? NoL : (NoL > -s ? (NoL + s) * (NoL + s) / (4.0 * s) : 0.0);
+    return Ev * c;
 }
 #endif
