@@ -316,11 +316,16 @@ def test_area_light_far_away_matches_point_formula(gl_ctx, name, light, i0, cosi
     assert rel.max() < 0.01, f"{name}: max relative error {rel.max():.4f}"
 
 
-def test_point_light_close_to_the_floor_is_inverse_square(gl_ctx):
+@pytest.mark.parametrize("treat_as_point", [True, False], ids=["point-model", "sphere-area"])
+def test_point_light_close_to_the_floor_is_inverse_square(gl_ctx, treat_as_point):
     """0.4 m above the floor: distances 0.4-5 m, so 1/d^2 is checked both sides of
-    1 m (a falloff clamped or linearised near the light fails)."""
+    1 m (a falloff clamped or linearised near the light fails). With ``treatAsPoint``
+    the point model's falloff is what is checked; without it the 0.1 m sphere (25 % of
+    its distance) is shaded as an area, whose irradiance is exactly the point formula
+    while the whole sphere is above the floor's horizon."""
     lpos = (0.2, 0.4, 0.1)
-    stage = floor_stage(local_light("SphereLight", lpos, intensity=5000))
+    extra = "bool treatAsPoint = 1" if treat_as_point else ""
+    stage = floor_stage(local_light("SphereLight", lpos, intensity=5000, extra=extra))
     img = render(stage)
     pts = ground_points(stage)
     exp = RHO / math.pi * point_illuminance(pts, 5000 * math.pi * 0.01, lpos)

@@ -278,28 +278,13 @@ MUTANTS: tuple[Mutant, ...] = (
         "validator: units tolerance relative to the smaller value (1 % apart reported)",
     ),
     Mutant(
-        "reference_diffuse_ignored",
-        "shaders/lighting_direct.frag",
-        "c += (d * L.misc.z + sp * L.misc.w)",
-        "c += (d + sp * L.misc.w)",
+        "exact_diffuse_ignored",
+        "shaders/common/shadow.glsl",
+        "vec3 c = (d * L.misc.z + sp * L.misc.w)",
+        "vec3 c = (d + sp * L.misc.w)",
         CLOSED,
-        "reference: the light's inputs:diffuse multiplier ignored",
-    ),
-    Mutant(
-        "tiled_diffuse_ignored",
-        "shaders/tiled_lighting.frag",
-        "c += (d * L.misc.z + sp * L.misc.w)",
-        "c += (d + sp * L.misc.w)",
-        CLOSED,
-        "tiled/clustered: the light's inputs:diffuse multiplier ignored",
-    ),
-    Mutant(
-        "lighttree_diffuse_ignored",
-        "shaders/lighttree_lighting.frag",
-        "c += (d * L.misc.z + sp * L.misc.w)",
-        "c += (d + sp * L.misc.w)",
-        CLOSED,
-        "lighttree: the light's inputs:diffuse multiplier ignored",
+        "reference/tiled/clustered/lighttree (light_radiance, one place since the area-light "
+        "refactor): the light's inputs:diffuse multiplier ignored",
     ),
     Mutant(
         "tiled_drops_last_light",
@@ -310,12 +295,13 @@ MUTANTS: tuple[Mutant, ...] = (
         "tiled/clustered: the last light of each tile's list skipped",
     ),
     Mutant(
-        "stb_shape_flipped",
-        "shaders/stb_lighting.frag",
-        "light_shape_rgb(L, -Ldir)",
-        "light_shape_rgb(L, Ldir)",
+        "shape_flipped",
+        "shaders/common/area.glsl",
+        "vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;",
+        "vec3 E = L.intensity.rgb * light_shape_rgb(L, Ldir) * f;",
         CLOSED,
-        "stb: the emission lobe evaluated towards the light instead of away from it",
+        "every method (light_reflect, point model): the emission lobe evaluated towards the "
+        "light instead of away from it",
     ),
     Mutant(
         "tradeoff_csv_tmp_left",
