@@ -215,15 +215,9 @@ def run_moving(args, stage, name: str, out: Path) -> list[dict]:
 
 def write_moving(rows: list[dict], out: Path) -> None:
     """``moving.csv`` and ``moving.md`` in ``out`` (atomic writes)."""
-    import csv
-    import io
+    from .tradeoff import write_csv
 
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=MOVING_FIELDS, extrasaction="ignore")
-    w.writeheader()
-    for r in rows:
-        w.writerow(r)
-    write_text_atomic(out / "moving.csv", buf.getvalue())
+    write_csv(rows, out / "moving.csv", MOVING_FIELDS)
     if not rows:
         return
     r0 = rows[0]
