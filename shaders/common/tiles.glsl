@@ -73,12 +73,11 @@ ivec2 term_texel(ivec2 small_tile, int slot) {
 }
 
 #ifdef STB_SELECT_ONE
+#include "common/rng.glsl"
+// One hash of (a, b, c, frame seed): rng_init's mixing step.
 uint select_hash(uint a, uint b, uint c) {
-    uint h = a * 73856093u ^ b * 19349663u ^ c * 83492791u ^ u_counts.y * 2654435761u;
-    h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;
-    return h;
-}
-// Quad selection: the one small-tile sample (0 .. STB_N - 1) this quad uses this
+    return rng_init(a * 73856093u ^ b * 19349663u ^ c * 83492791u, u_counts.y).state;
+}// Quad selection: the one small-tile sample (0 .. STB_N - 1) this quad uses this
 // frame, a hash of (small tile, slot, frame seed). The shadow and lighting passes
 // compute the same value, so a quad's term and its light always match.
 int quad_stream(ivec2 small_tile, int slot) {
