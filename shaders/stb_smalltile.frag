@@ -73,11 +73,11 @@ void main() {
     ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
 
     // -- SRS over the big tile's K samples into STB_N streams --
-    int K = u_block.x * u_block.y;
+    const int K = STB_K;  // compile-time (= u_block.x * u_block.y): loops unroll, arrays fit
     // Targets of all K candidates first, so the defensive mixture can use their mean.
-    float ph_all[LIM_BIG_TILE_SLOTS_MAX];
-    float wbt_all[LIM_BIG_TILE_SLOTS_MAX];
-    uint li_all[LIM_BIG_TILE_SLOTS_MAX];
+    float ph_all[STB_K];
+    float wbt_all[STB_K];
+    uint li_all[STB_K];
     float ph_sum = 0.0;
     float ph_n = 0.0;
     for (int slot = 0; slot < K; ++slot) {
@@ -130,7 +130,7 @@ void main() {
     // less correlated across the tile, for the lighting cost of one sample.
     float total = 0.0;
     float count = 0.0;
-    float w_all[LIM_BIG_TILE_SLOTS_MAX];
+    float w_all[STB_K];
     for (int slot = 0; slot < K; ++slot) {
         w_all[slot] = 0.0;
         if (li_all[slot] == LIM_EMPTY_LIGHT_INDEX || wbt_all[slot] <= 0.0) continue;

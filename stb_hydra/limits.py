@@ -117,6 +117,19 @@ BIG_TILE_SLOTS_ALLOWED = (4, 8, 16, 32, 64)
 #: decorrelated alternative measured in docs/STB_NOTES.md (issue 13).
 SMALL_TILE_SAMPLES_MAX = 4
 SMALL_TILE_SAMPLES_DEFAULT = 1
+#: Light clusters of the big-tile pass for many lights (issue 16, ``-o bigtile``):
+#: FoV lights in Morton order, cut into clusters of this many. A big tile scores every
+#: cluster once (shared by its K slots) and each slot then streams one cluster, so the
+#: pass costs ~ n / BIG_TILE_CLUSTER_LIGHTS + K x BIG_TILE_CLUSTER_LIGHTS per tile
+#: instead of n. 32: the cluster scan and the in-cluster stream cost about the same
+#: at 50,000 lights.
+BIG_TILE_CLUSTER_LIGHTS = 32
+#: Most clusters (shared-memory CDF of one workgroup: 4 bytes each, 16 KiB); holds
+#: MAX_FOV_LIGHTS / BIG_TILE_CLUSTER_LIGHTS.
+BIG_TILE_CLUSTERS_MAX = 4096
+#: ``-o bigtile=auto`` uses the clusters above this many FoV lights per slot: below it,
+#: streaming n / K lights per slot costs less than one cluster (and is exact WRS).
+BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT = 2 * BIG_TILE_CLUSTER_LIGHTS
 
 # --- Shadows ----------------------------------------------------------------------------
 

@@ -107,6 +107,7 @@ ALL_FEATURES = {
     "STOCHASTIC_PCF": True,
     "LOCAL_LIGHTS": True,
     "STB_N": 4,
+    "STB_K": 64,
     "STB_PIXEL_TERMS": True,
     "CULL_GROUP_SIZE": 64,
 }

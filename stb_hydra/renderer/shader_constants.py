@@ -40,10 +40,16 @@ SSBO_SHADOW_MAPS = 1
 SSBO_CELL_HEADERS = 2
 SSBO_CELL_LISTS = 3
 SSBO_CELL_EXTRA = 4
+#: STB's light clusters (``-o bigtile=clusters``): cluster bounds and flux; the FoV
+#: light index of every clustered light (Morton order).
+SSBO_STB_CLUSTERS = 5
+SSBO_STB_CLUSTER_LIGHTS = 6
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
 IMAGE_UNIT_PIXEL_TERMS = 1
+#: Image unit of STB's big-tile reservoirs written by stb_bigtile_clusters.comp.
+IMAGE_UNIT_BIGTILE = 2
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
 #: ``LightingMethod.bind_common`` hands out from 0 (at most 8: G-buffer, IES, atlas, sun).
@@ -162,6 +168,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
         "LIM_PCSS_MAX_TEXELS": f"{limits.PCSS_MAX_TEXELS:.1f}",
+        "LIM_BIG_TILE_CLUSTER_LIGHTS": str(limits.BIG_TILE_CLUSTER_LIGHTS),
+        "LIM_BIG_TILE_CLUSTERS_MAX": str(limits.BIG_TILE_CLUSTERS_MAX),
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),
@@ -169,8 +177,11 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_CELL_HEADERS": str(SSBO_CELL_HEADERS),
         "SSBO_CELL_LISTS": str(SSBO_CELL_LISTS),
         "SSBO_CELL_EXTRA": str(SSBO_CELL_EXTRA),
+        "SSBO_STB_CLUSTERS": str(SSBO_STB_CLUSTERS),
+        "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
+        "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),
         "TEX_UNIT_HIZ": str(TEX_UNIT_HIZ),
         # codes and sentinels
         "PI": repr(math.pi),

@@ -40,19 +40,23 @@ import numpy as np
 
 from ... import limits
 from ..fullscreen import draw_fullscreen
-from ..gl import set_uniform
+from ..gl import set_uniform, shader_library
 from ..graph import DERIVED, Rec, Resource, Tex
 from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
 from ..shader_constants import (
+    IMAGE_UNIT_BIGTILE,
     IMAGE_UNIT_PIXEL_TERMS,
     INTERLEAVE_FOOTPRINT_PX,
     INTERLEAVE_QUADS_PER_SIDE,
     QUAD_FWD_Y_SHIFT,
     QUAD_LUT_SLOT_SHIFT,
+    SSBO_STB_CLUSTER_LIGHTS,
+    SSBO_STB_CLUSTERS,
     TEX_UNIT_HIZ,
 )
 from ..tasks.base import Pass
 from .base import LightingMethod, Warn, program
+from .light_clusters import LightClusters, build_clusters
 from .options import Opt, OptionError, Schema
 from .quad_patterns import QuadPatterns, fixed_pattern, pattern_bank
 
@@ -132,6 +136,15 @@ OPTIONS = Schema(
         "drawn independently over all K, chosen per quad (terms for that one only: the "
         "cost of N = 1) or per pixel (terms for all N): less tile-correlated noise",
     ),
+    Opt(
+        "bigtile",
+        str,
+        "auto",
+        choices=("auto", "stream", "clusters"),
+        doc="big-tile candidates: every slot streams n/K lights (exact WRS), or draws from "
+        "light clusters (cost ~ n/32 + 32K per tile); auto: clusters above "
+        "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights",
+    ),
 )
 #: Debug views (``shaders/debug_<name>.frag``).
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
@@ -161,6 +174,10 @@ class StbLighting(LightingMethod):
         self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.pattern_offset = (0, 0)
         self.pattern_layer = 0
+        # Light clusters (bigtile=clusters): built for (table version, FoV rows).
+        self._clusters: LightClusters | None = None
+        self._clusters_key: tuple[int, bytes] | None = None
+        self._cluster_buffers: dict[str, moderngl.Buffer] = {}
 
     def internal(self) -> tuple[Tex, ...]:
         return (
@@ -255,6 +272,7 @@ class StbLighting(LightingMethod):
     def defines(self, frame: FrameContext) -> dict[str, object]:
         d = self.scene_defines(frame)
         d["STB_N"] = int(self.o["N"])
+        d["STB_K"] = int(self.o["K"])
         if self.o["shadow_res"] == "pixel":
             d["STB_PIXEL_TERMS"] = True
         if self.o["select"] != "all":
@@ -281,12 +299,15 @@ class StbLighting(LightingMethod):
 
         # 1. big tiles
         big = bufs.texture("stb_bigtile", 1, "u4", size=g["bigtile"])
-        prog = program(frame, "stb_bigtile.frag", defines)
-        self._common_uniforms(frame, prog)
-        set_uniform(prog, "u_target_mode", TARGET_MODES[self.o["target"]])
-        self.bind_common(frame, prog)
-        self._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
-        self._pass(frame, prog, ["stb_bigtile"], g["bigtile"])
+        if self.use_clusters(frame.light_count):
+            self._bigtile_clusters(frame, defines, big, hiz, g["big_tiles"])
+        else:
+            prog = program(frame, "stb_bigtile.frag", defines)
+            self._common_uniforms(frame, prog)
+            set_uniform(prog, "u_target_mode", TARGET_MODES[self.o["target"]])
+            self.bind_common(frame, prog)
+            self._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
+            self._pass(frame, prog, ["stb_bigtile"], g["bigtile"])
 
         # 2. small tiles
         small = bufs.texture("stb_smalltile", 4, "u4", size=g["smalltile"])
@@ -339,6 +360,60 @@ class StbLighting(LightingMethod):
             self.fullscreen_pass(frame, prog, "lighting")
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
 
+    def use_clusters(self, n_lights: int) -> bool:
+        """Whether this frame's big-tile pass draws from light clusters."""
+        mode = self.o["bigtile"]
+        if mode != "auto":
+            return mode == "clusters"
+        return n_lights > int(self.o["K"]) * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT
+
+    def light_clusters(self, frame: FrameContext) -> LightClusters:
+        """The FoV lights' clusters, rebuilt only when the light table or the FoV set
+        changed since the last frame."""
+        assert self.delegate is not None, "light clusters need the delegate's light table"
+        t, rows = self.delegate.light_table, frame.get(InViewLights).rows
+        key = (int(t.version), np.ascontiguousarray(rows).tobytes())
+        if self._clusters is None or key != self._clusters_key:
+            self._clusters = build_clusters(t.position[rows], t.range[rows], t.flux[rows])
+            self._clusters_key = key
+            for name, arr in (("records", self._clusters.records), ("order", self._clusters.order)):
+                data = np.ascontiguousarray(arr).tobytes() or bytes(16)
+                buf = self._cluster_buffers.get(name)
+                if buf is None or buf.size < len(data):
+                    if buf is not None:
+                        buf.release()
+                    buf = frame.ctx.buffer(reserve=max(len(data), 16))
+                    self._cluster_buffers[name] = buf
+                buf.write(data)
+        return self._clusters
+
+    def _bigtile_clusters(
+        self,
+        frame: FrameContext,
+        defines: dict[str, object],
+        big: moderngl.Texture,
+        hiz: moderngl.Texture,
+        tiles: tuple[int, int],
+    ) -> None:
+        """Big-tile reservoirs drawn from light clusters (stb_bigtile_clusters.comp)."""
+        with frame.timings_scope("stb_bigtile"):
+            cl = self.light_clusters(frame)
+            cs = shader_library(frame.ctx).compute("stb_bigtile_clusters.comp", defines)
+            o = self.o
+            set_uniform(cs, "u_block", SLOT_BLOCKS[int(o["K"])])
+            set_uniform(cs, "u_big_px", int(o["big_tile"]))
+            set_uniform(cs, "u_weight_cap", float(o["weight_cap"]))
+            set_uniform(cs, "u_target_mode", TARGET_MODES[o["target"]])
+            set_uniform(cs, "u_clusters", cl.count)
+            self.bind_common(frame, cs)  # type: ignore[arg-type]  # same uniforms and buffers
+            hiz.use(TEX_UNIT_HIZ)
+            self._cluster_buffers["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
+            self._cluster_buffers["order"].bind_to_storage_buffer(SSBO_STB_CLUSTER_LIGHTS)
+            big.bind_to_image(IMAGE_UNIT_BIGTILE, read=False, write=True)
+            cs.run(tiles[0], tiles[1], 1)
+            frame.ctx.memory_barrier()
+        frame.stats["stb_light_clusters"] = cl.count
+
     def _pass(
         self,
         frame: FrameContext,
@@ -352,6 +427,10 @@ class StbLighting(LightingMethod):
             draw_fullscreen(frame.ctx, prog, fbo, size)
 
     def release(self) -> None:
+        for buf in self._cluster_buffers.values():
+            buf.release()
+        self._cluster_buffers.clear()
+        self._clusters = None
         if self._luts is not None:
             for t in self._luts:
                 t.release()

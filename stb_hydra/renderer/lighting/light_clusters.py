@@ -1,0 +1,83 @@
+"""Light clusters of STB's big-tile pass for many lights (issue 16, ``-o bigtile``).
+
+The FoV lights are sorted along a Morton (Z-order) curve of their positions and cut
+into runs of :data:`~stb_hydra.limits.BIG_TILE_CLUSTER_LIGHTS`; each run is a cluster
+with the bounding box of its lights' positions (world, m), its summed flux (lm) and its
+largest influence range (m). ``stb_bigtile_clusters.comp`` scores the clusters per big
+tile and streams only the drawn cluster's lights. Built with numpy, once per change of
+the light table or of the FoV set (a still scene rebuilds nothing).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ... import limits
+
+#: Bits per axis of the Morton code (3 x 10 = 30 bits).
+MORTON_BITS = 10
+
+
+def _spread_bits(v: np.ndarray) -> np.ndarray:
+    """Insert two zero bits after each of the low 10 bits of ``v`` (uint64)."""
+    v = v & 0x3FF
+    v = (v | (v << 16)) & 0x030000FF
+    v = (v | (v << 8)) & 0x0300F00F
+    v = (v | (v << 4)) & 0x030C30C3
+    v = (v | (v << 2)) & 0x09249249
+    return v
+
+
+def morton_order(positions: np.ndarray) -> np.ndarray:
+    """Indices that sort ``positions`` (n, 3) along a Z-order curve of their bounding
+    box (stable: equal codes keep their order)."""
+    p = np.asarray(positions, dtype=np.float64)
+    if len(p) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = p.min(axis=0)
+    ext = np.maximum(p.max(axis=0) - lo, 1e-12)
+    q = np.clip((p - lo) / ext * ((1 << MORTON_BITS) - 1), 0, (1 << MORTON_BITS) - 1)
+    q = q.astype(np.uint64)
+    code = _spread_bits(q[:, 0]) | (_spread_bits(q[:, 1]) << 1) | (_spread_bits(q[:, 2]) << 2)
+    return np.argsort(code, kind="stable")
+
+
+@dataclass
+class LightClusters:
+    """``order``: FoV light index per clustered position (uint32, Morton order);
+    ``records``: (clusters, 8) float32 -- min xyz, flux sum, max xyz, max range."""
+
+    order: np.ndarray
+    records: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return len(self.records)
+
+
+def build_clusters(
+    positions: np.ndarray,
+    ranges: np.ndarray,
+    flux: np.ndarray,
+    group: int = limits.BIG_TILE_CLUSTER_LIGHTS,
+) -> LightClusters:
+    """Clusters of ``group`` consecutive lights along the Morton curve.
+
+    positions (n, 3) world m; ranges (n,) m; flux (n,) lm (negative counts as 0).
+    Cluster c holds ``order[c * group : (c + 1) * group]``."""
+    n = len(positions)
+    order = morton_order(positions)
+    if n == 0:
+        return LightClusters(np.zeros(0, np.uint32), np.zeros((0, 8), np.float32))
+    p = np.asarray(positions, dtype=np.float64)[order]
+    r = np.asarray(ranges, dtype=np.float64)[order]
+    f = np.maximum(np.asarray(flux, dtype=np.float64)[order], 0.0)
+    starts = np.arange(0, n, group)
+    rec = np.empty((len(starts), 8), dtype=np.float64)
+    rec[:, 0:3] = np.minimum.reduceat(p, starts, axis=0)
+    rec[:, 3] = np.add.reduceat(f, starts)
+    rec[:, 4:7] = np.maximum.reduceat(p, starts, axis=0)
+    rec[:, 7] = np.maximum.reduceat(r, starts)
+    return LightClusters(order.astype(np.uint32), rec.astype(np.float32))
