@@ -540,9 +540,9 @@ def bench_one(
 
 def _shadow_summary(m: Any, budget: int | None, budget_ms: float | None) -> dict[str, Any]:
     """Shadow-capture figures of a run: the budgets, the capture pass time per measured
-    frame that captured maps (median / p95 / max, ms) and when every shadow map was first fresh (frame
-    index from the engine's first frame, warm-up included, and wall seconds; None if
-    never within the run)."""
+    frame that captured maps (median / p95 / max, ms) and when every shadow map was
+    first fresh (frame index from the engine's first frame, warm-up included, and wall
+    seconds; None if never within the run)."""
     import numpy as np
 
     # frames that captured something (after every map is fresh a static scene captures
