@@ -171,6 +171,21 @@ SHADOW_PASS_OVERHEAD_TEXELS = 4096
 SHADOW_SPOT_PASSES = 2
 SHADOW_OMNI_PASSES = 7
 
+#: Prior of the capture cost model (``shadows.cost``): ms per Mtexel, ms per render
+#: pass, ms per Mtriangle submitted. Measured on llvmpipe (2 cores, docs/PERFORMANCE.md):
+#: ~30 ms per Mtexel and ~0.13 ms per pass (the texel-budget figures above), ~50 ms per
+#: Mtriangle (chess omni captures, per-face culled). A start-up calibration replaces it
+#: unless the model is fixed (deterministic mode).
+SHADOW_COST_COEFFS_DEFAULT = (30.0, 0.13, 50.0)
+#: Frames of wall-clock samples the cost model is re-fitted over (a few seconds).
+SHADOW_COST_FIT_WINDOW = 64
+#: Weight of the prior in the re-fit, in frames' worth of samples: the model follows
+#: the measurements after a few frames but a run of look-alike frames cannot make a
+#: coefficient it says nothing about drift.
+SHADOW_COST_PRIOR_WEIGHT = 1.0
+#: Largest ``shadow_budget_ms`` accepted (one second of captures per frame).
+SHADOW_UPDATE_BUDGET_MS_MAX = 1000.0
+
 #: Fraction of the per-frame budget reserved for pending static maps (on top of the
 #: guaranteed first static): a burst of statics (level load) drains at >= 1/4 speed
 #: while dynamic hero lights keep >= 3/4 of the budget.

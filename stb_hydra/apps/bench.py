@@ -279,6 +279,24 @@ def add_parser(sub) -> None:
     p.add_argument("--camera", help="camera prim path (default: the stage's first camera)")
     p.add_argument("--time", type=float, help="stage time to render (default: start time)")
     p.add_argument("--seed", type=int, default=0, help="render seed of stochastic methods")
+    p.add_argument(
+        "--shadow-budget",
+        type=int,
+        help=f"shadow-atlas texels per frame (default {limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT}"
+        ", or none when only --shadow-budget-ms is given)",
+    )
+    p.add_argument(
+        "--shadow-budget-ms",
+        type=float,
+        help="shadow-capture milliseconds per frame (cost model re-fitted from wall-clock "
+        "times); records report the capture time per frame and when every map was fresh",
+    )
+    p.add_argument(
+        "--shadow-capture",
+        choices=("per_face", "one_pass"),
+        default="per_face",
+        help="omni shadow capture mode (default per_face)",
+    )
     p.add_argument("--json", help="write the records (a JSON list) here")
     p.add_argument("--csv", help="write a CSV here (default with --json: beside it)")
     p.add_argument("--plot", help="write the plot PNG here (default with --json: beside it)")
@@ -346,6 +364,17 @@ def _run(args: argparse.Namespace) -> int:
     methods = parse_methods(args.methods or [DEFAULT_METHODS], method_defaults(args, avail), avail)
     _check_method_options(methods)
     sizes = _sizes(args)
+    budget = args.shadow_budget
+    if budget is not None and budget <= 0:
+        raise CliError(f"--shadow-budget must be a positive number of texels, got {budget}")
+    ms = args.shadow_budget_ms
+    if ms is not None and not 0 < ms <= limits.SHADOW_UPDATE_BUDGET_MS_MAX:
+        raise CliError(
+            f"--shadow-budget-ms must be in (0, {limits.SHADOW_UPDATE_BUDGET_MS_MAX:g}] "
+            f"milliseconds, got {ms:g}"
+        )
+    if budget is None and ms is None:
+        budget = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT
     cases = [c for spec in args.scenes for c in parse_scene(spec)]
     out_json, out_csv, out_plot = _output_paths(args)
     records = run_bench(
@@ -359,6 +388,9 @@ def _run(args: argparse.Namespace) -> int:
         time=args.time,
         seed=args.seed,
         progress=not args.quiet,
+        shadow_budget=budget,
+        shadow_budget_ms=args.shadow_budget_ms,
+        shadow_capture=args.shadow_capture,
     )
     if out_json:
         write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
@@ -389,6 +421,9 @@ def run_bench(
     time: float | None = None,
     seed: int = 0,
     progress: bool = True,
+    shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
+    shadow_budget_ms: float | None = None,
+    shadow_capture: str = "per_face",
 ) -> list[dict[str, Any]]:
     """Every (scene, size, method) -> one record (see the module doc)."""
     from tqdm import tqdm
@@ -415,6 +450,9 @@ def run_bench(
                         time=time,
                         seed=seed,
                         on_frame=lambda: bar.update(1),
+                        shadow_budget=shadow_budget,
+                        shadow_budget_ms=shadow_budget_ms,
+                        shadow_capture=shadow_capture,
                     )
                     records.append(rec)
                     bar.update(frames + warmup - rec["frames"] - rec["warmup"])  # skipped
@@ -438,6 +476,9 @@ def bench_one(
     time: float | None = None,
     seed: int = 0,
     on_frame: Callable[[], None] | None = None,
+    shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
+    shadow_budget_ms: float | None = None,
+    shadow_capture: str = "per_face",
 ) -> dict[str, Any]:
     """Measure one configuration on ``stage``; the engine is always released."""
     from ..renderer.engine import Engine, RenderError
@@ -452,8 +493,10 @@ def bench_one(
         lighting=method.name,
         seed=seed,
         profile=True,
-        # Real-time: captures under the per-frame budget, as a running application.
-        shadow_budget=limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
+        # Real-time: captures under the per-frame budget(s), as a running application.
+        shadow_budget=shadow_budget,
+        shadow_budget_ms=shadow_budget_ms,
+        shadow_capture_mode=shadow_capture,
         method_options=dict(method.options),
     )
     try:
@@ -488,10 +531,46 @@ def bench_one(
         "frames": len(m.frame),
         "warmup": warmup,
         **m.summary(),
+        **_shadow_summary(m, shadow_budget, shadow_budget_ms),
         "stats": m.stats,
         "load_avg": load_before,
         "renderer": renderer,
     }
+
+
+def _shadow_summary(m: Any, budget: int | None, budget_ms: float | None) -> dict[str, Any]:
+    """Shadow-capture figures of a run: the budgets, the capture pass time per measured
+    frame that captured maps (median / p95 / max, ms) and when every shadow map was
+    first fresh (frame index from the engine's first frame, warm-up included, and wall
+    seconds; None if never within the run)."""
+    import numpy as np
+
+    # frames that captured something (after every map is fresh a static scene captures
+    # nothing, and those frames say nothing about the budget)
+    cap = [
+        p.get("shadow_atlas", 0.0)
+        for p, st in zip(m.passes, m.frame_stats)
+        if st.get("shadow_maps_updated", 0)
+    ]
+    return {
+        "shadow_budget_texels": budget,
+        "shadow_budget_ms": budget_ms,
+        "shadow_capture_ms": _r(float(np.median(cap))) if cap else 0.0,
+        "shadow_capture_ms_p95": _r(float(np.percentile(cap, 95))) if cap else 0.0,
+        "shadow_capture_ms_max": _r(max(cap, default=0.0)),
+        # fraction of measured frames whose capture time was within budget + 20 %
+        "shadow_capture_within_budget_120": (
+            None
+            if budget_ms is None or not cap
+            else _r(float(np.mean(np.array(cap) <= 1.2 * budget_ms)))
+        ),
+        "shadow_all_fresh_frame": m.all_fresh_frame,
+        "shadow_all_fresh_s": None if m.all_fresh_s is None else _r(m.all_fresh_s),
+    }
+
+
+def _r(x: float) -> float:
+    return round(float(x), 4)
 
 
 # --- outputs -----------------------------------------------------------------------------

@@ -47,6 +47,11 @@ class Measurement:
     stats: dict[str, Any] = field(default_factory=dict)
     #: Scalar ``frame.stats`` of every measured frame.
     frame_stats: list[dict[str, Any]] = field(default_factory=list)
+    #: First frame (0-based, warm-up included) after which every shadow map was fresh
+    #: (``shadow_stale_maps`` 0), and the wall seconds from the first frame's start to
+    #: that frame's end; None when it never happened (or the scene has no such stat).
+    all_fresh_frame: int | None = None
+    all_fresh_s: float | None = None
 
     def summary(self) -> dict[str, Any]:
         """Medians: ``frame_ms``, ``frame_ms_min/max``, ``passes``, ``gpu_ms``,
@@ -141,6 +146,9 @@ def measure_engine(
             t0 = _time.perf_counter()
             frame = engine.render_frame(time)
             wall = (_time.perf_counter() - t0) * 1e3
+            if m.all_fresh_frame is None and frame.stats.get("shadow_stale_maps", 1) == 0:
+                m.all_fresh_frame = i
+                m.all_fresh_s = _time.perf_counter() - start
             if i >= warmup:
                 passes, cpu = split_frame_timings(engine.timings.frames[-1], names)
                 m.frame.append(wall)

@@ -112,6 +112,20 @@ def add_parser(sub) -> None:
         "(default: unlimited, every map captured before each frame; real time uses "
         f"{limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT})",
     )
+    p.add_argument(
+        "--shadow-budget-ms",
+        type=float,
+        help="shadow-capture milliseconds per frame, priced by a cost model (texels, "
+        "passes, triangles) calibrated at start-up and re-fitted from wall-clock times; "
+        "with --shadow-budget too, a frame stops at whichever budget it reaches first",
+    )
+    p.add_argument(
+        "--shadow-capture",
+        choices=("per_face", "one_pass"),
+        default="per_face",
+        help="omni shadow capture: each cube face drawn on its own (default) or all six "
+        "in one geometry-shader submission",
+    )
     p.add_argument("--atlas-size", type=int, help="shadow atlas side in texels (power of two)")
     p.add_argument(
         "--shadow-filter",
@@ -300,6 +314,12 @@ def _render_settings(args: argparse.Namespace):
         raise CliError(
             f"--shadow-budget must be a positive number of texels, got {args.shadow_budget}"
         )
+    ms = args.shadow_budget_ms
+    if ms is not None and not 0 < ms <= limits.SHADOW_UPDATE_BUDGET_MS_MAX:
+        raise CliError(
+            f"--shadow-budget-ms must be in (0, {limits.SHADOW_UPDATE_BUDGET_MS_MAX:g}] "
+            f"milliseconds, got {ms:g}"
+        )
     return RenderSettings(
         width=args.width,
         height=args.height,
@@ -313,6 +333,8 @@ def _render_settings(args: argparse.Namespace):
         shadows=not args.no_shadows,
         # None = offline: every map captured before the frame (RenderSettings).
         shadow_budget=args.shadow_budget,
+        shadow_budget_ms=ms,
+        shadow_capture_mode=args.shadow_capture,
         shadow_atlas_size=args.atlas_size,
         shadow_filter=args.shadow_filter,
         method_options=options,
@@ -347,6 +369,7 @@ def _stats_header(args: argparse.Namespace, eng, settings, pipeline) -> dict:
             "exposure": pipeline.exposure,
             # null: offline, every shadow map captured before each frame
             "shadow_budget": settings.shadow_budget,
+            "shadow_budget_ms": settings.shadow_budget_ms,
         },
         "frames": [],
     }

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -41,6 +42,19 @@ class RenderSettings:
     #: real-time budget in texels rendered per frame (maps refresh over several
     #: frames, e.g. ``limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT``). 0 is an error.
     shadow_budget: int | None = None
+    #: Shadow-capture budget in milliseconds per frame (None: none). Each capture's
+    #: time is predicted by a cost model of texels, render passes and triangles
+    #: (``shadows.cost``), calibrated at start-up and re-fitted from wall-clock
+    #: measurements. With ``shadow_budget`` too, a frame stops at whichever budget it
+    #: reaches first; alone, it makes the render real-time (no texel limit).
+    shadow_budget_ms: float | None = None
+    #: Fixed cost-model coefficients (ms per Mtexel, ms per pass, ms per Mtriangle):
+    #: deterministic scheduling (no clock, no re-fit), e.g. for tests. None: measured.
+    shadow_cost_coeffs: tuple[float, float, float] | None = None
+    #: Omni capture: "per_face" (each cube face drawn on its own with its culled
+    #: batches; fastest on llvmpipe) or "one_pass" (one geometry-shader submission for
+    #: all six faces; ``renderer.shadow_capture.CAPTURE_MODES``).
+    shadow_capture_mode: str = "per_face"
     #: Local shadow filter: "pcf" (4-tap gather) or "stochastic" (gather + a random
     #: sub-texel offset per pixel and frame; converges softer under accumulation).
     shadow_filter: str = "pcf"
@@ -69,8 +83,37 @@ class RenderSettings:
                 f"offline renders (every map captured before the frame); got {b!r}"
             )
 
+        ms = self.shadow_budget_ms
+        if ms is not None and (
+            isinstance(ms, bool)
+            or not isinstance(ms, (int, float))
+            or not 0 < ms <= limits.SHADOW_UPDATE_BUDGET_MS_MAX
+        ):
+            raise ValueError(
+                f"shadow_budget_ms must be a number of milliseconds in "
+                f"(0, {limits.SHADOW_UPDATE_BUDGET_MS_MAX:g}], or None; got {ms!r}"
+            )
+        cc = self.shadow_cost_coeffs
+        if cc is not None:
+            try:
+                ok = len(cc) == 3 and all(math.isfinite(float(x)) and float(x) >= 0 for x in cc)
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(
+                    f"shadow_cost_coeffs must be 3 numbers >= 0 (ms per Mtexel, per pass, "
+                    f"per Mtriangle), or None; got {cc!r}"
+                )
+            self.shadow_cost_coeffs = (float(cc[0]), float(cc[1]), float(cc[2]))
+        if self.shadow_capture_mode not in ("per_face", "one_pass"):
+            raise ValueError(
+                f"shadow_capture_mode must be 'per_face' or 'one_pass'; "
+                f"got {self.shadow_capture_mode!r}"
+            )
+
     def realtime_shadow_budget(self) -> int:
-        """Texels the shadow scheduler may render per frame (offline: unbounded)."""
+        """Texels the shadow scheduler may render per frame (offline: unbounded; a
+        millisecond budget alone: no texel limit)."""
         if self.shadow_budget is None:
             return limits.SHADOW_UPDATE_BUDGET_TEXELS_OFFLINE
         return int(self.shadow_budget)

@@ -164,17 +164,24 @@ class ShaderLibrary:
         return ProgramKey(tuple(stages), d)
 
     def program(
-        self, vertex: str, fragment: str | None = None, defines: dict[str, object] | None = None
+        self,
+        vertex: str,
+        fragment: str | None = None,
+        defines: dict[str, object] | None = None,
+        geometry: str | None = None,
     ) -> moderngl.Program:
-        key = self._key((vertex, fragment or ""), defines)
+        stages = (vertex, fragment or "") + ((geometry,) if geometry else ())
+        key = self._key(stages, defines)
         prog = self._programs.get(key)
         if prog is None:
             vs = preprocess(vertex, defines)
             fs = preprocess(fragment, defines) if fragment else None
+            gs = preprocess(geometry, defines) if geometry else None
             try:
-                prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs)
+                prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs, geometry_shader=gs)
             except moderngl.Error as exc:
-                raise GLError(f"compiling {vertex} + {fragment} failed:\n{exc}") from None
+                names = " + ".join(n for n in (vertex, geometry, fragment) if n)
+                raise GLError(f"compiling {names} failed:\n{exc}") from None
             self._programs[key] = prog
             self.compiled += 1
         return prog

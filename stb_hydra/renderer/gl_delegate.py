@@ -85,6 +85,18 @@ class DrawBatch:
         return len(self.models)
 
 
+@dataclass(frozen=True)
+class BatchArrays:
+    """``GLRenderDelegate.batch_arrays``: numpy views of the draw batches (world AABBs
+    in metres, triangles per draw with every instance, dynamic flags)."""
+
+    batches: list[DrawBatch]
+    lo: np.ndarray  # (B, 3)
+    hi: np.ndarray  # (B, 3)
+    triangles: np.ndarray  # (B,)
+    dynamic: np.ndarray  # (B,) bool
+
+
 def _t3(v: npt.ArrayLike) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=np.float64).reshape(-1)
     return (float(a[0]), float(a[1]), float(a[2]))
@@ -96,6 +108,7 @@ class GLRenderDelegate(RenderDelegate):
         self.ctx = ctx
         self.geometry: dict[str, GeometryBuffers] = {}
         self.batches: list[DrawBatch] = []
+        self._batch_arrays: BatchArrays | None = None
         self._batch_prev: dict[tuple, np.ndarray] = {}
         self._batches_dirty = True
         self._static_changed: set[str] = set()
@@ -201,6 +214,7 @@ class GLRenderDelegate(RenderDelegate):
                 g.ibo.write(idx.tobytes())
             g.index_count = int(idx.size)
             g.bounds = bounds
+            self._batch_arrays = None
             for b in self.batches:
                 if b.geometry_key == key:
                     for vao in b.vaos.values():
@@ -286,6 +300,23 @@ class GLRenderDelegate(RenderDelegate):
         self.batches = new
         self.scene_bounds = (lo, hi) if np.all(np.isfinite(lo)) else (np.zeros(3), np.zeros(3))
         self._batches_dirty = False
+
+    def batch_arrays(self) -> BatchArrays:
+        """Per-batch world bounds, triangle counts (instances included) and dynamic
+        flags as arrays aligned with ``batches`` (rebuilt when the batches are)."""
+        cached = self._batch_arrays
+        if cached is not None and cached.batches is self.batches:
+            return cached
+        bs = self.batches
+        lo = np.array([b.bounds[0] for b in bs], dtype=np.float64).reshape(-1, 3)
+        hi = np.array([b.bounds[1] for b in bs], dtype=np.float64).reshape(-1, 3)
+        tris = np.array(
+            [self.geometry[b.geometry_key].index_count // 3 * b.count for b in bs],
+            dtype=np.float64,
+        )
+        dyn = np.array([b.dynamic for b in bs], dtype=bool)
+        self._batch_arrays = BatchArrays(bs, lo, hi, tris, dyn)
+        return self._batch_arrays
 
     def _age_batches(self) -> None:
         """No transform changed: the previous-frame matrices catch up once."""

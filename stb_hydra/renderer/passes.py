@@ -72,6 +72,9 @@ def build_passes(
             settings.shadow_atlas_size,
             settings.realtime_shadow_budget(),
             enabled=local_shadows,
+            budget_ms=settings.shadow_budget_ms,
+            cost_coeffs=settings.shadow_cost_coeffs,
+            capture_mode=settings.shadow_capture_mode,
         )
         uniforms = FrameUniformsTask(delegate, ctx)
     else:

@@ -9,7 +9,8 @@ record layout are GL-free, in :mod:`stb_hydra.shadows.capture`.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, cast
+import time
+from typing import TYPE_CHECKING, NamedTuple, cast
 
 import moderngl
 import numpy as np
@@ -19,24 +20,52 @@ from ..shadows.atlas import AtlasRect
 from ..shadows.capture import (
     BIAS_TEXELS,
     Capture,
+    capture_view_projs,
     face_rotations,
     map_record,
-    spot_view_proj,
     texel_angle,
 )
-from .camera import perspective
+from ..shadows.culling import boxes_in_sphere, frustum_planes, visible_faces
 from .gl import set_uniform, shader_library
 
 if TYPE_CHECKING:
-    from .gl_delegate import DrawBatch, GLRenderDelegate
+    from .gl_delegate import GLRenderDelegate
+
+
+#: ``ShadowCapturer`` modes: "per_face" draws each cube face on its own (the culled
+#: batches of that face; the reference), "one_pass" draws every batch once for all six
+#: faces (``depth_cube.geom``: per-triangle face selection, faces in one 3x2 target).
+CAPTURE_MODES = ("per_face", "one_pass")
+#: GL_CLIP_DISTANCE0 (the one-pass path clips each face with 4 user planes).
+_GL_CLIP_DISTANCE0 = 0x3000
+
+
+class CaptureWork(NamedTuple):
+    """What one capture rendered: the cost model's features."""
+
+    texels: int  # depth texels rendered (all faces)
+    passes: int  # render passes (faces or one submission, + the copy)
+    triangles: float  # triangles submitted after culling (each face counts its own)
 
 
 class ShadowCapturer:
-    """Owns the atlas texture and the temporary depth targets."""
+    """Owns the atlas texture and the temporary depth targets.
 
-    def __init__(self, ctx: moderngl.Context, size: int) -> None:
+    ``mode``: one of ``CAPTURE_MODES`` (omni lights; a spot map is one pass either way).
+    ``cull``: test each batch's world bounds against the light's range sphere *and* each
+    face's clip volume (``shadows.culling``); False keeps the range test only (the
+    reference of the culling tests).
+    """
+
+    def __init__(
+        self, ctx: moderngl.Context, size: int, mode: str = "per_face", cull: bool = True
+    ) -> None:
+        if mode not in CAPTURE_MODES:
+            raise ValueError(f"shadow capture mode must be one of {CAPTURE_MODES}, got {mode!r}")
         self.ctx = ctx
         self.size = size
+        self.mode = mode
+        self.cull = cull
         self.atlas = ctx.texture((size, size), 1, dtype="nu2")
         self.atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.atlas.repeat_x = self.atlas.repeat_y = False
@@ -46,6 +75,12 @@ class ShadowCapturer:
         self._faces = face_rotations().astype(np.float32)
         self.captures = 0
         self.texels = 0
+        self.triangles = 0.0
+
+    @property
+    def omni_passes(self) -> int:
+        """Render passes of one omni capture in this mode (the copy included)."""
+        return limits.SHADOW_OMNI_PASSES if self.mode == "per_face" else 2
 
     def _temp(self, w: int, h: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
         t = self._temps.get((w, h))
@@ -58,52 +93,101 @@ class ShadowCapturer:
             self._temps[(w, h)] = t
         return t
 
+    def visible(self, delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> np.ndarray:
+        """(F, B) bool: batch b is drawn into face f (F = 6 omni, 1 spot); static maps
+        skip dynamic geometry."""
+        arr = delegate.batch_arrays()
+        vps = capture_view_projs(c)
+        keep = boxes_in_sphere(np.array(c.position), np.array(c.range), arr.lo, arr.hi)
+        if not dynamic:
+            keep &= ~arr.dynamic
+        if not self.cull:
+            return np.broadcast_to(keep, (len(vps), len(keep)))
+        return visible_faces(frustum_planes(vps), arr.lo, arr.hi) & keep
+
     def capture(
         self, delegate: GLRenderDelegate, key: str, c: Capture, rect: AtlasRect, dynamic: bool
-    ) -> None:
+    ) -> CaptureWork:
         """Render the light's depth and copy it into ``rect`` of the atlas."""
         ctx = self.ctx
         border = limits.SHADOW_MAP_BORDER_PX
         interior = rect.size - 2 * border
         if interior < 4:
-            return
-        prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
-        batches = _batches_in_range(delegate, c, dynamic)
+            return CaptureWork(0, 0, 0.0)
+        vis = self.visible(delegate, c, dynamic)
+        arr = delegate.batch_arrays()
+        batches = arr.batches
+        triangles = float((vis * arr.triangles).sum())
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        vps = capture_view_projs(c).astype(np.float32)
         if c.omni:
             f = max(interior // 2, 4)
             tex, fbo = self._temp(3 * f, 2 * f)
             fbo.use()
             fbo.clear(depth=1.0)
-            proj = perspective(1.0, 1.0, 0.0, 0.0, c.near, c.range)
-            pos = np.array(c.position)
-            for i in range(6):
-                rot = np.eye(4)
-                rot[:3, :3] = self._faces[i]
-                trans = np.eye(4)
-                trans[3, :3] = -pos
-                vp = trans @ rot @ proj
-                ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
-                set_uniform(prog, "u_light_view_proj", vp.astype(np.float32))
-                for b in batches:
+            if self.mode == "one_pass":
+                prog = shader_library(ctx).program(
+                    "depth_cube.vert", "depth_only.frag", geometry="depth_cube.geom"
+                )
+                ctx.viewport = (0, 0, 3 * f, 2 * f)
+                cast(moderngl.Uniform, prog["u_face_vp"]).write(vps.tobytes())
+                masks = (vis * (1 << np.arange(6))[:, None]).sum(axis=0)
+                for i in range(4):
+                    ctx.enable_direct(_GL_CLIP_DISTANCE0 + i)
+                for j in np.nonzero(masks)[0].tolist():
+                    b = batches[j]
+                    set_uniform(prog, "u_face_mask", int(masks[j]))
                     delegate.vertex_array(b, prog, depth_only=True).render(
                         moderngl.TRIANGLES, instances=b.count
                     )
-            self.texels += 6 * f * f
+                for i in range(4):
+                    ctx.disable_direct(_GL_CLIP_DISTANCE0 + i)
+                passes = 2
+            else:
+                prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
+                for i in range(6):
+                    ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
+                    set_uniform(prog, "u_light_view_proj", vps[i])
+                    for j in np.nonzero(vis[i])[0].tolist():
+                        b = batches[j]
+                        delegate.vertex_array(b, prog, depth_only=True).render(
+                            moderngl.TRIANGLES, instances=b.count
+                        )
+                passes = limits.SHADOW_OMNI_PASSES
+            texels = 6 * f * f
         else:
+            prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
             tex, fbo = self._temp(interior, interior)
             fbo.use()
             fbo.clear(depth=1.0)
             ctx.viewport = (0, 0, interior, interior)
-            set_uniform(prog, "u_light_view_proj", spot_view_proj(c).astype(np.float32))
-            for b in batches:
+            set_uniform(prog, "u_light_view_proj", vps[0])
+            for j in np.nonzero(vis[0])[0].tolist():
+                b = batches[j]
                 delegate.vertex_array(b, prog, depth_only=True).render(
                     moderngl.TRIANGLES, instances=b.count
                 )
-            self.texels += interior * interior
+            texels = interior * interior
+            passes = limits.SHADOW_SPOT_PASSES
         ctx.disable(moderngl.DEPTH_TEST)
-        # copy into the atlas
+        self._copy(delegate, c, rect, tex, interior)
+        self.texels += texels
+        self.triangles += triangles
+        self.captures += 1
+        return CaptureWork(texels, passes, triangles)
+
+    def _copy(
+        self,
+        delegate: GLRenderDelegate,
+        c: Capture,
+        rect: AtlasRect,
+        tex: moderngl.Texture,
+        interior: int,
+    ) -> None:
+        """Copy the depth target into the atlas rect (``shadow_copy.frag``)."""
+        ctx = self.ctx
+        border = limits.SHADOW_MAP_BORDER_PX
         cp = shader_library(ctx).program("fullscreen.vert", "shadow_copy.frag")
         self.atlas_fbo.use()
         ctx.viewport = (rect.x, rect.y, rect.size, rect.size)
@@ -120,7 +204,6 @@ class ShadowCapturer:
             cast(moderngl.Uniform, cp["u_face_rot"]).write(self._faces.tobytes())
         vao = delegate_fullscreen(ctx, cp)
         vao.render(moderngl.TRIANGLES, vertices=3)
-        self.captures += 1
 
     def record(self, c: Capture, rect: AtlasRect) -> np.ndarray:
         """The std430 ``ShadowMap`` record (28 floats) of a captured map."""
@@ -146,16 +229,59 @@ def delegate_fullscreen(ctx: moderngl.Context, prog: moderngl.Program) -> modern
     return vao
 
 
-def _batches_in_range(delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> list[DrawBatch]:
-    """Draw batches whose world bounds touch the light's range sphere; static maps
-    skip dynamic geometry."""
-    out = []
-    p = np.array(c.position)
-    for b in delegate.batches:
-        if b.dynamic and not dynamic:
-            continue
-        lo, hi = b.bounds
-        d = p - np.clip(p, lo, hi)
-        if float(d @ d) <= c.range * c.range:
-            out.append(b)
-    return out
+#: Start-up calibration workloads (``calibrate_cost``): (depth target side, passes,
+#: triangles per pass). Pass-, texel- and triangle-dominated, ~0.1-0.3 s on llvmpipe.
+_CALIBRATION = ((32, 24, 2), (1024, 2, 2), (64, 1, 200_000))
+
+
+def calibrate_cost(ctx: moderngl.Context, repeats: int = 2) -> np.ndarray:
+    """Measure the capture cost coefficients (ms per Mtexel, per pass, per Mtriangle;
+    ``shadows.cost``) with three synthetic depth workloads, each timed with
+    ``ctx.finish()`` (the fastest of ``repeats``), solved by least squares (>= 0).
+    The copy into the atlas is not in the texel workload: the run-time re-fit adds it."""
+    from ..shadows.cost import features
+
+    prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
+    rng = np.random.default_rng(0)
+    n_tri = max(t for _, _, t in _CALIBRATION)
+    # random small triangles in clip space (depth 0.5), plus one covering quad first
+    quad = np.array([[-1, -1], [1, -1], [1, 1], [-1, -1], [1, 1], [-1, 1]], np.float64)
+    centers = rng.uniform(-1.0, 1.0, (n_tri, 1, 2))
+    small = centers + rng.uniform(-0.01, 0.01, (n_tri, 3, 2))  # ~1 texel, like distant casters
+    xy = np.concatenate([quad, small.reshape(-1, 2)])
+    pos = np.c_[xy, np.full(len(xy), 0.5)].astype(np.float32)
+    vbo = ctx.buffer(pos.tobytes())
+    ibo = ctx.buffer(np.arange(len(pos), dtype=np.uint32).tobytes())
+    inst = ctx.buffer(np.eye(4, dtype=np.float32).tobytes())
+    vao = ctx.vertex_array(
+        prog, [(vbo, "3f", "in_pos"), (inst, "16f/i", "in_model")], ibo, index_element_size=4
+    )
+    set_uniform(prog, "u_light_view_proj", np.eye(4, dtype=np.float32))
+    rows: list[np.ndarray] = []
+    times: list[float] = []
+    ctx.enable(moderngl.DEPTH_TEST)
+    try:
+        for side, passes, tris in _CALIBRATION:
+            tex = ctx.depth_texture((side, side))
+            fbo = ctx.framebuffer(depth_attachment=tex)
+            best = math.inf
+            for _ in range(repeats):
+                ctx.finish()
+                t0 = time.perf_counter()
+                for _ in range(passes):
+                    fbo.use()
+                    fbo.clear(depth=1.0)
+                    ctx.viewport = (0, 0, side, side)
+                    vao.render(moderngl.TRIANGLES, vertices=3 * tris)
+                ctx.finish()
+                best = min(best, (time.perf_counter() - t0) * 1e3)
+            fbo.release()
+            tex.release()
+            rows.append(features(side * side * passes, passes, tris * passes))
+            times.append(best)
+    finally:
+        ctx.disable(moderngl.DEPTH_TEST)
+        for obj in (vao, vbo, ibo, inst):
+            obj.release()
+    c, *_ = np.linalg.lstsq(np.array(rows), np.array(times), rcond=None)
+    return np.maximum(c, 0.0)

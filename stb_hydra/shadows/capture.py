@@ -16,6 +16,7 @@ use that, not the light's current transform. :func:`map_record` is the std430
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -101,11 +102,55 @@ def _up_for(d: np.ndarray) -> tuple[float, float, float]:
 
 def face_rotations() -> np.ndarray:
     """(6, 3, 3) world -> face-view rotations (row-vector), face order +X -X +Y -Y +Z -Z."""
+    return _face_rotations().copy()
+
+
+@functools.cache
+def _face_rotations() -> np.ndarray:
     out = np.zeros((6, 3, 3))
     for i, (f, up) in enumerate(_FACES):
         m = look_at(np.zeros(3), np.array(f), up=up)
         out[i] = np.linalg.inv(m)[:3, :3]
     return out
+
+
+def omni_face_view_projs(c: Capture) -> np.ndarray:
+    """(6, 4, 4) row-vector world -> clip matrices of the cube faces of an omni capture
+    (90 degree frusta, near ``c.near``, far ``c.range``), face order as ``face_rotations``."""
+    proj = perspective(1.0, 1.0, 0.0, 0.0, c.near, c.range)
+    trans = np.eye(4)
+    trans[3, :3] = -np.asarray(c.position, dtype=np.float64)
+    rot = np.zeros((6, 4, 4))
+    rot[:, :3, :3] = face_rotations()
+    rot[:, 3, 3] = 1.0
+    return trans @ rot @ proj
+
+
+def omni_face_view_projs_many(
+    position: np.ndarray, near: np.ndarray, far: np.ndarray
+) -> np.ndarray:
+    """(L, 6, 4, 4) ``omni_face_view_projs`` of L lights at once (positions (L, 3) in
+    metres, near / far planes (L,))."""
+    pos = np.asarray(position, dtype=np.float64).reshape(-1, 3)
+    n = np.asarray(near, dtype=np.float64).reshape(-1)
+    f = np.asarray(far, dtype=np.float64).reshape(-1)
+    rot = _face_rotations()  # (6, 3, 3)
+    # view = [p - pos, 1] @ [[R, 0], [0, 1]]: translation row -pos @ R
+    view = np.zeros((len(pos), 6, 4, 4))
+    view[:, :, :3, :3] = rot
+    view[:, :, 3, :3] = -np.einsum("li,fij->lfj", pos, rot)
+    view[:, :, 3, 3] = 1.0
+    proj = np.zeros((len(pos), 4, 4))
+    proj[:, 0, 0] = proj[:, 1, 1] = 1.0
+    proj[:, 2, 2] = -(f + n) / (f - n)
+    proj[:, 2, 3] = -1.0
+    proj[:, 3, 2] = -2.0 * f * n / (f - n)
+    return view @ proj[:, None]
+
+
+def capture_view_projs(c: Capture) -> np.ndarray:
+    """(F, 4, 4) view-projections one capture renders: 6 cube faces (omni) or 1 (spot)."""
+    return omni_face_view_projs(c) if c.omni else spot_view_proj(c)[None]
 
 
 def texel_angle(c: Capture, interior: int) -> float:

@@ -28,6 +28,13 @@ Rules (STB_SPEC "Shadow atlas"):
   pending work always renders at least one map. A map's cost is its texels plus a
   fixed charge per render pass (``pass_overhead_texels``): without it, hundreds of
   tiny maps fit a texel budget and their per-pass overhead makes a hitch.
+* Time budget (``budget_ms``, optional, with a ``ShadowCostModel``): each map's cost
+  is also predicted in milliseconds from its texels, passes and the triangles it
+  submits (``set_work``). In strict urgency order, a map is taken only while the
+  predicted milliseconds *after* it stay <= ``budget_ms`` (the static reserve:
+  ``static_reserve * budget_ms``), so a frame never plans past its time budget --
+  except the first map of a frame, which is always taken (starvation guard). When
+  both budgets are given, a frame closes at whichever limit it reaches first.
 * Lights out of view are not dropped: their priority is scaled down (policy), so they
   are downgraded first and refreshed last.
 * A map remembers the transform it was captured with (``captured_transform``);
@@ -60,6 +67,7 @@ from stb_hydra.limits import (
 )
 from stb_hydra.shadows import policy
 from stb_hydra.shadows.atlas import AllocResult, AtlasRect, AtlasStats, ShadowAtlas
+from stb_hydra.shadows.cost import ShadowCostModel
 
 __all__ = ["SchedulerStats", "ShadowScheduler", "ShadowUpdate", "WaitStats", "same_transform"]
 
@@ -92,6 +100,11 @@ class ShadowUpdate:
     dynamic: bool
     frame: int
     gen: int = field(default=0, repr=False, compare=False)
+    #: Predicted milliseconds (the cost model's; 0 without one).
+    cost_ms: float = field(default=0.0, compare=False)
+    #: Texels, passes and triangles the capture renders (cost-model features).
+    passes: int = field(default=1, repr=False, compare=False)
+    triangles: float = field(default=0.0, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -115,11 +128,14 @@ class SchedulerStats:
     maps_planned: int  # last plan_frame
     texels_planned: int
     budget_texels: int
+    ms_planned: float  # predicted by the cost model (0 without one)
+    budget_ms: float | None
     maps_updated: int  # last commit
     texels_rendered: int
     static_wait: WaitStats  # frames a dirty static map waited before its capture
     dynamic_age: WaitStats  # frames between two captures of a dynamic map
     oldest_pending: int  # frames the longest-waiting pending static has waited so far
+    stale_maps: int  # lights whose map is not fresh (invalid, dirty, moved or unplaced)
     atlas: AtlasStats
 
 
@@ -144,6 +160,7 @@ class _Light:
     last_served: int = -1
     ticket: int = 0  # service order: lower = served (or added) longer ago
     retry_after: int = 0
+    triangles: float = 0.0  # submitted per capture (after culling): cost-model feature
 
 
 class ShadowScheduler:
@@ -158,6 +175,8 @@ class ShadowScheduler:
         stats_window: int = SHADOW_STATS_WINDOW_FRAMES,
         upgrades_per_frame: int = SHADOW_UPGRADES_PER_FRAME,
         pass_overhead_texels: int = 0,
+        budget_ms: float | None = None,
+        cost_model: ShadowCostModel | None = None,
     ) -> None:
         if budget_texels < 0 or not 0.0 <= static_reserve <= 1.0:
             raise ValueError("budget_texels must be >= 0 and static_reserve in [0, 1]")
@@ -166,6 +185,14 @@ class ShadowScheduler:
         #: Fixed cost of one capture render pass, in texel equivalents, charged on
         #: top of the texels (limits.SHADOW_PASS_OVERHEAD_TEXELS in the engine).
         self.pass_overhead_texels = int(pass_overhead_texels)
+        if budget_ms is not None and not (budget_ms > 0 and np.isfinite(budget_ms)):
+            raise ValueError(
+                f"budget_ms must be a positive number of milliseconds, got {budget_ms}"
+            )
+        #: Milliseconds of captures per frame (None: no time budget), priced by
+        #: ``cost_model`` (a default ``ShadowCostModel`` when none is given).
+        self.budget_ms = None if budget_ms is None else float(budget_ms)
+        self.cost_model = cost_model if cost_model is not None else ShadowCostModel()
         self.atlas = atlas if atlas is not None else ShadowAtlas()
         self.budget_texels = int(budget_texels)
         self.static_reserve = float(static_reserve)
@@ -180,6 +207,7 @@ class ShadowScheduler:
         self._now = 0  # frame that dirt marked now belongs to
         self._last_planned = -1
         self._planned = (0, 0)
+        self._planned_ms = 0.0
         self._committed = (0, 0)
         self._static_wait: deque[tuple[int, int]] = deque()
         self._dynamic_age: deque[tuple[int, int]] = deque()
@@ -281,6 +309,10 @@ class ShadowScheduler:
             self._dynamic.pop(key, None)
             self._dirty(light, "geometry")  # its map held dynamic geometry
 
+    def set_work(self, key: Hashable, triangles: float) -> None:
+        """Triangles one capture of ``key`` submits (after culling; cost-model feature)."""
+        self._lights[key].triangles = max(float(triangles), 0.0)
+
     def mark_dirty(self, key: Hashable, reason: str) -> None:
         """Queue a re-capture (e.g. "geometry": static geometry in range changed)."""
         self._dirty(self._lights[key], reason)
@@ -343,6 +375,9 @@ class ShadowScheduler:
             and same_transform(light.captured, light.transform)
         )
 
+    def is_dynamic(self, key: Hashable) -> bool:
+        return self._lights[key].dynamic
+
     def is_dirty(self, key: Hashable) -> bool:
         return self._lights[key].dirty_since is not None
 
@@ -360,19 +395,31 @@ class ShadowScheduler:
         statics.sort(key=lambda lt: (-self._urgency(lt, frame), lt.ticket))
         plan: list[ShadowUpdate] = []
         spent = 0
+        spent_ms = 0.0
+        budget_ms = self.budget_ms
         i = 0
         if statics:  # starvation guard + static reserve
             reserve = self.static_reserve * self.budget_texels
-            while i < len(statics) and (i == 0 or spent < reserve):
-                spent += self._take(plan, statics[i], frame)
+            reserve_ms = None if budget_ms is None else self.static_reserve * budget_ms
+            while i < len(statics) and (
+                i == 0 or (spent < reserve and self._fits_ms(statics[i], spent_ms, reserve_ms))
+            ):
+                charge, ms = self._take(plan, statics[i], frame)
+                spent += charge
+                spent_ms += ms
                 i += 1
         rest = statics[i:] + [lights[k] for k in self._dynamic if lights[k].rect is not None]
         rest.sort(key=lambda lt: (-self._urgency(lt, frame), lt.dynamic, lt.ticket))
         for light in rest:
-            if spent >= self.budget_texels and plan:
+            if plan and (
+                spent >= self.budget_texels or not self._fits_ms(light, spent_ms, budget_ms)
+            ):
                 break
-            spent += self._take(plan, light, frame)
+            charge, ms = self._take(plan, light, frame)
+            spent += charge
+            spent_ms += ms
         self._planned = (len(plan), sum(u.cost for u in plan))  # texels, not charge
+        self._planned_ms = spent_ms
         self._last_planned = frame
         self._now = frame + 1
         return plan
@@ -422,11 +469,16 @@ class ShadowScheduler:
             maps_planned=self._planned[0],
             texels_planned=self._planned[1],
             budget_texels=self.budget_texels,
+            ms_planned=self._planned_ms,
+            budget_ms=self.budget_ms,
             maps_updated=self._committed[0],
             texels_rendered=self._committed[1],
             static_wait=self._window(self._static_wait, frame),
             dynamic_age=self._window(self._dynamic_age, frame),
             oldest_pending=max(oldest, 0),
+            stale_maps=sum(
+                1 for lt in lights.values() if not lt.valid or lt.dirty_since is not None
+            ),
             atlas=self.atlas.stats(),
         )
 
@@ -442,19 +494,41 @@ class ShadowScheduler:
             return p * (frame - light.dirty_since + 1)  # type: ignore[operator]
         return p * (frame - light.last_served)
 
-    def _take(self, plan: list[ShadowUpdate], light: _Light, frame: int) -> int:
-        """Plan one capture; returns what it charges against the budget (its texels
-        plus the fixed per-pass overhead)."""
+    def _texels(self, light: _Light) -> int:
         rect = light.rect
         assert rect is not None
-        cost = round(light.cost_factor * rect.size * rect.size)
+        return round(light.cost_factor * rect.size * rect.size)
+
+    def _cost_ms(self, light: _Light) -> float:
+        return self.cost_model.predict(self._texels(light), light.passes, light.triangles)
+
+    def _fits_ms(self, light: _Light, spent_ms: float, limit: float | None) -> bool:
+        return limit is None or spent_ms + self._cost_ms(light) <= limit
+
+    def _take(self, plan: list[ShadowUpdate], light: _Light, frame: int) -> tuple[int, float]:
+        """Plan one capture; returns what it charges against the budgets: texels (its
+        texels plus the fixed per-pass overhead) and predicted milliseconds."""
+        rect = light.rect
+        assert rect is not None
+        cost = self._texels(light)
+        ms = self._cost_ms(light)
         reason = "+".join(sorted(light.reasons)) if light.reasons else "refresh"
         plan.append(
             ShadowUpdate(
-                light.key, rect, reason, cost, light.transform, light.dynamic, frame, light.gen
+                light.key,
+                rect,
+                reason,
+                cost,
+                light.transform,
+                light.dynamic,
+                frame,
+                light.gen,
+                ms,
+                light.passes,
+                light.triangles,
             )
         )
-        return cost + light.passes * self.pass_overhead_texels
+        return cost + light.passes * self.pass_overhead_texels, ms
 
     def _dirty(self, light: _Light, reason: str) -> None:
         if light.dirty_since is None:

@@ -13,6 +13,7 @@ light-table row, and records persist in slots.
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING, cast
 
 import moderngl
@@ -20,12 +21,20 @@ import numpy as np
 
 from ... import limits
 from ...shadows.atlas import ShadowAtlas
-from ...shadows.capture import RECORD_FLOATS, Capture, capture_for
+from ...shadows.capture import (
+    RECORD_FLOATS,
+    Capture,
+    capture_for,
+    omni_face_view_projs_many,
+    spot_view_proj,
+)
+from ...shadows.cost import ShadowCostModel
+from ...shadows.culling import triangles_submitted
 from ...shadows.scheduler import SchedulerStats, ShadowScheduler, ShadowUpdate
 from ..frame import FrameContext
 from ..graph import Imported, Rec
 from ..records import InViewLights, ShadowSlots
-from ..shadow_capture import ShadowCapturer
+from ..shadow_capture import ShadowCapturer, calibrate_cost
 from .base import Pass
 
 if TYPE_CHECKING:
@@ -49,17 +58,31 @@ class ShadowAtlasTask(Pass):
         atlas_size: int | None = None,
         budget_texels: int | None = None,
         enabled: bool = True,
+        budget_ms: float | None = None,
+        cost_coeffs: tuple[float, float, float] | None = None,
+        capture_mode: str = "per_face",
     ) -> None:
         super().__init__(delegate)
         #: False: nothing samples local shadows (sun-only, --no-shadows): capture nothing.
         self.enabled = enabled
         self.atlas_size = atlas_size or limits.SHADOW_ATLAS_SIZE_DEFAULT
+        #: Fixed coefficients: deterministic (no clock); else calibrated + re-fitted.
+        self.cost_model = ShadowCostModel(cost_coeffs, fixed=cost_coeffs is not None)
         self.scheduler = ShadowScheduler(
             ShadowAtlas(self.atlas_size),
             budget_texels=budget_texels or limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
             pass_overhead_texels=limits.SHADOW_PASS_OVERHEAD_TEXELS,
+            budget_ms=budget_ms,
+            cost_model=self.cost_model,
         )
+        #: Wall-clock capture timing (ctx.finish() around the captures) feeds the cost
+        #: model: only with a time budget and a model that is not fixed.
+        self.measure = budget_ms is not None and cost_coeffs is None
+        self.capture_mode = capture_mode
         self.capturer: ShadowCapturer | None = None
+        self._work_batches: object = None  # batch list the per-light work was computed for
+        #: Last frame's capture time (ms, wall clock; None when not measured).
+        self.last_capture_ms: float | None = None
         #: Tests: plan nothing, so maps keep their last capture.
         self.frozen = False
         self._row_of: dict[str, int] = {}  # registered key -> light-table row
@@ -130,6 +153,10 @@ class ShadowAtlasTask(Pass):
             self._plan = []
             frame.put(ShadowSlots())
             return
+        if self.capturer is None:
+            self.capturer = ShadowCapturer(frame.ctx, self.atlas_size, mode=self.capture_mode)
+            if self.measure:
+                self.cost_model.set_prior(calibrate_cost(frame.ctx))
         t = self.delegate.light_table
         self._grow(t.n_rows)
         rows = frame.get(InViewLights).rows
@@ -140,8 +167,6 @@ class ShadowAtlasTask(Pass):
         self._membership_changed = False
         fidx = frame.frame_index
         self._plan = [] if (self.frozen or not self._row_of) else self.scheduler.plan_frame(fidx)
-        if self.capturer is None:
-            self.capturer = ShadowCapturer(frame.ctx, self.atlas_size)
         self._update_records(self.capturer)
         self._reserve_records_buffer(frame)
         maps = self._slots_for(rows)
@@ -157,6 +182,8 @@ class ShadowAtlasTask(Pass):
         self._last_seen[shadowed] = fidx
         ver = t.cols["version"][shadowed]
         changed = shadowed[ver != self._seen_version[shadowed]]
+        touched: list[str] = []
+        omni_passes = self.capturer.omni_passes if self.capturer else limits.SHADOW_OMNI_PASSES
         for r in changed.tolist():
             key = t.paths[r]
             if key is None:
@@ -179,7 +206,7 @@ class ShadowAtlasTask(Pass):
                     dynamic=dyn,
                     transform=c,
                     cost_factor=limits.SHADOW_OMNI_COST_FACTOR if c.omni else 1.0,
-                    passes=limits.SHADOW_OMNI_PASSES if c.omni else limits.SHADOW_SPOT_PASSES,
+                    passes=omni_passes if c.omni else limits.SHADOW_SPOT_PASSES,
                 )
                 self._row_of[key] = r
                 self._membership_changed = True
@@ -188,7 +215,45 @@ class ShadowAtlasTask(Pass):
                 sch.set_transform(key, c)
             self._captures[key] = c
             self._seen_version[r] = t.cols["version"][r]
+            touched.append(key)
+        batches = self.delegate.batches
+        if batches is not self._work_batches:  # geometry changed: every light's work
+            self._work_batches = batches
+            touched = list(self._captures)
+        self._update_work(touched)
         return changed
+
+    def _update_work(self, keys: list[str]) -> None:
+        """Triangles each of ``keys``' captures submits after culling (cost model),
+        vectorised over the lights (``shadows.culling.triangles_submitted``)."""
+        if not keys:
+            return
+        arr = self.delegate.batch_arrays()
+        caps = [self._captures[k] for k in keys]
+        n = len(caps)
+        omni = np.fromiter((c.omni for c in caps), dtype=bool, count=n)
+        pos = np.array([c.position for c in caps], dtype=np.float64)
+        near = np.fromiter((c.near for c in caps), dtype=np.float64, count=n)
+        rng = np.fromiter((c.range for c in caps), dtype=np.float64, count=n)
+        vps = np.zeros((n, 6, 4, 4))
+        valid = np.zeros((n, 6), dtype=bool)
+        if omni.any():
+            vps[omni] = omni_face_view_projs_many(pos[omni], near[omni], rng[omni])
+            valid[omni] = True
+        for i in np.nonzero(~omni)[0].tolist():  # spot lights: one frustum each
+            vps[i, 0] = spot_view_proj(caps[i])
+            valid[i, 0] = True
+        dyn = np.fromiter((self.scheduler.is_dynamic(k) for k in keys), dtype=bool, count=n)
+        tri_all = triangles_submitted(vps, valid, pos, rng, arr.lo, arr.hi, arr.triangles)
+        static_tris = np.where(arr.dynamic, 0.0, arr.triangles)
+        tri_static = (
+            triangles_submitted(vps, valid, pos, rng, arr.lo, arr.hi, static_tris)
+            if arr.dynamic.any()
+            else tri_all
+        )
+        tris = np.where(dyn, tri_all, tri_static)
+        for k, tr in zip(keys, tris.tolist()):
+            self.scheduler.set_work(k, tr)
 
     def _forget_gone(self, fidx: int, n_changed: int) -> None:
         """Forget lights that vanished, lost their shadows or stayed out of view."""
@@ -292,11 +357,25 @@ class ShadowAtlasTask(Pass):
         if self.capturer is None or not self.enabled:
             return
         d = self.delegate
+        measure = self.measure and bool(self._plan)
+        if measure:
+            frame.ctx.finish()  # earlier passes' work is not the captures'
+        t0 = time.perf_counter()
+        texels = passes = 0
+        triangles = 0.0
         for u in self._plan:
             if u.rect is None or u.transform is None:
                 continue
             key, c = cast(str, u.key), cast(Capture, u.transform)
-            self.capturer.capture(d, key, c, u.rect, u.dynamic)
+            w = self.capturer.capture(d, key, c, u.rect, u.dynamic)
+            texels += w.texels
+            passes += w.passes
+            triangles += w.triangles
+        if measure:
+            frame.ctx.finish()
+            ms = (time.perf_counter() - t0) * 1e3
+            self.last_capture_ms = ms
+            self.cost_model.observe(texels, passes, triangles, ms)
         self.scheduler.commit(self._plan)
         n = len(self._slot_rect)
         if self._plan or not self._uploaded:
@@ -326,6 +405,10 @@ class ShadowAtlasTask(Pass):
                 "shadow_downgrades": st.atlas.downgrades,
                 "shadow_unplaced": st.unplaced,
                 "shadow_lights": st.lights,
+                "shadow_budget_ms": st.budget_ms,
+                "shadow_ms_planned": st.ms_planned,
+                "shadow_triangles": triangles,
+                "shadow_stale_maps": st.stale_maps,
             }
         )
 
