@@ -21,28 +21,34 @@ def test_morton_order_keeps_neighbours_together():
     pos = np.concatenate([a, b])
     perm = rng.permutation(64)
     pos = pos[perm]
-    cl = build_clusters(pos, np.full(64, 2.0), np.arange(64, dtype=float), group=32)
-    assert cl.count == 2
+    cl = build_clusters(pos, np.full(64, 2.0), np.arange(64, dtype=float), group=32, fanout=2)
+    assert cl.count == 2 and len(cl.supers) == 1
     assert sorted(cl.order.tolist()) == list(range(64))  # a permutation of the FoV lights
     groups = [set((perm[cl.order[c * 32 : (c + 1) * 32]] >= 32).tolist()) for c in range(2)]
     assert all(len(g) == 1 for g in groups), groups
     for c in range(2):
         members = cl.order[c * 32 : (c + 1) * 32]
-        np.testing.assert_allclose(cl.records[c, 0:3], pos[members].min(0), rtol=1e-6)
-        np.testing.assert_allclose(cl.records[c, 4:7], pos[members].max(0), rtol=1e-6)
-        assert cl.records[c, 3] == np.float32(np.arange(64)[members].sum())
-        assert cl.records[c, 7] == 2.0
+        np.testing.assert_allclose(cl.clusters[c, 0:3], pos[members].min(0), rtol=1e-6)
+        np.testing.assert_allclose(cl.clusters[c, 4:7], pos[members].max(0), rtol=1e-6)
+        assert cl.clusters[c, 3] == np.float32(np.arange(64)[members].sum())
+        assert cl.clusters[c, 7] == 2.0
+    np.testing.assert_allclose(cl.supers[0, 0:3], pos.min(0), rtol=1e-6)
+    np.testing.assert_allclose(cl.supers[0, 4:7], pos.max(0), rtol=1e-6)
+    assert cl.supers[0, 3] == np.float32(np.arange(64).sum())
+    assert cl.records().shape == (3, 8)  # the GPU array: super-clusters, then clusters
 
 
 def test_clusters_of_a_ragged_tail_and_negative_flux():
     pos = np.stack([np.arange(70.0), np.zeros(70), np.zeros(70)], 1)
     flux = np.full(70, 1.0)
     flux[5] = -3.0  # a negative flux counts as 0, never lowers a cluster's score
-    cl = build_clusters(pos, np.linspace(1, 7, 70), flux, group=32)
-    assert cl.count == 3
+    cl = build_clusters(pos, np.linspace(1, 7, 70), flux, group=32, fanout=2)
+    assert cl.count == 3 and len(cl.supers) == 2
     assert cl.order.tolist() == list(range(70))  # on a line the curve keeps the order
-    assert cl.records[:, 3].tolist() == [31.0, 32.0, 6.0]
-    assert cl.records[2, 7] == np.float32(7.0)
+    assert cl.clusters[:, 3].tolist() == [31.0, 32.0, 6.0]
+    assert cl.clusters[2, 7] == np.float32(7.0)
+    assert cl.supers[:, 3].tolist() == [63.0, 6.0]
+    assert cl.supers[:, 7].tolist() == [np.float32(cl.clusters[1, 7]), np.float32(7.0)]
     assert morton_order(np.zeros((0, 3))).size == 0
 
 

@@ -40,8 +40,8 @@ SSBO_SHADOW_MAPS = 1
 SSBO_CELL_HEADERS = 2
 SSBO_CELL_LISTS = 3
 SSBO_CELL_EXTRA = 4
-#: STB's light clusters (``-o bigtile=clusters``): cluster bounds and flux; the FoV
-#: light index of every clustered light (Morton order).
+#: STB's light clusters (``-o bigtile=clusters``): super-cluster then cluster bounds
+#: and flux (one array); the FoV light index of every clustered light (Morton order).
 SSBO_STB_CLUSTERS = 5
 SSBO_STB_CLUSTER_LIGHTS = 6
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
@@ -169,7 +169,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
         "LIM_PCSS_MAX_TEXELS": f"{limits.PCSS_MAX_TEXELS:.1f}",
         "LIM_BIG_TILE_CLUSTER_LIGHTS": str(limits.BIG_TILE_CLUSTER_LIGHTS),
-        "LIM_BIG_TILE_CLUSTERS_MAX": str(limits.BIG_TILE_CLUSTERS_MAX),
+        "LIM_BIG_TILE_CLUSTER_FANOUT": str(limits.BIG_TILE_CLUSTER_FANOUT),
+        "LIM_BIG_TILE_SUPERS_MAX": str(limits.BIG_TILE_SUPERS_MAX),
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),

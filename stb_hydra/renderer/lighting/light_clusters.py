@@ -1,11 +1,13 @@
 """Light clusters of STB's big-tile pass for many lights (issue 16, ``-o bigtile``).
 
 The FoV lights are sorted along a Morton (Z-order) curve of their positions and cut
-into runs of :data:`~stb_hydra.limits.BIG_TILE_CLUSTER_LIGHTS`; each run is a cluster
-with the bounding box of its lights' positions (world, m), its summed flux (lm) and its
-largest influence range (m). ``stb_bigtile_clusters.comp`` scores the clusters per big
-tile and streams only the drawn cluster's lights. Built with numpy, once per change of
-the light table or of the FoV set (a still scene rebuilds nothing).
+into runs of :data:`~stb_hydra.limits.BIG_TILE_CLUSTER_LIGHTS`: clusters; runs of
+:data:`~stb_hydra.limits.BIG_TILE_CLUSTER_FANOUT` clusters are super-clusters. Each
+has the bounding box of its lights' positions (world, m), their summed flux (lm) and
+their largest influence range (m). ``stb_bigtile_clusters.comp`` scores the
+super-clusters per big tile, then per slot the clusters of the drawn super-cluster,
+then streams the drawn cluster's lights. Built with numpy, once per change of the
+light table or of the FoV set (a still scene rebuilds nothing).
 """
 
 from __future__ import annotations
@@ -47,14 +49,30 @@ def morton_order(positions: np.ndarray) -> np.ndarray:
 @dataclass
 class LightClusters:
     """``order``: FoV light index per clustered position (uint32, Morton order);
-    ``records``: (clusters, 8) float32 -- min xyz, flux sum, max xyz, max range."""
+    ``clusters`` and ``supers``: (count, 8) float32 -- min xyz, flux sum, max xyz, max
+    range. Cluster c holds ``order[c * G : (c + 1) * G]``, super-cluster s the clusters
+    ``s * F ... (s + 1) * F - 1``."""
 
     order: np.ndarray
-    records: np.ndarray
+    clusters: np.ndarray
+    supers: np.ndarray
 
     @property
     def count(self) -> int:
-        return len(self.records)
+        return len(self.clusters)
+
+    def records(self) -> np.ndarray:
+        """The GPU array: super-clusters first, then clusters."""
+        return np.ascontiguousarray(np.concatenate([self.supers, self.clusters]))
+
+
+def _bounds(p: np.ndarray, r: np.ndarray, f: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    rec = np.empty((len(starts), 8), dtype=np.float64)
+    rec[:, 0:3] = np.minimum.reduceat(p, starts, axis=0)
+    rec[:, 3] = np.add.reduceat(f, starts)
+    rec[:, 4:7] = np.maximum.reduceat(p, starts, axis=0)
+    rec[:, 7] = np.maximum.reduceat(r, starts)
+    return rec
 
 
 def build_clusters(
@@ -62,22 +80,25 @@ def build_clusters(
     ranges: np.ndarray,
     flux: np.ndarray,
     group: int = limits.BIG_TILE_CLUSTER_LIGHTS,
+    fanout: int = limits.BIG_TILE_CLUSTER_FANOUT,
 ) -> LightClusters:
-    """Clusters of ``group`` consecutive lights along the Morton curve.
+    """Clusters of ``group`` consecutive lights along the Morton curve and
+    super-clusters of ``fanout`` consecutive clusters.
 
-    positions (n, 3) world m; ranges (n,) m; flux (n,) lm (negative counts as 0).
-    Cluster c holds ``order[c * group : (c + 1) * group]``."""
+    positions (n, 3) world m; ranges (n,) m; flux (n,) lm (negative counts as 0)."""
     n = len(positions)
     order = morton_order(positions)
     if n == 0:
-        return LightClusters(np.zeros(0, np.uint32), np.zeros((0, 8), np.float32))
+        empty = np.zeros((0, 8), np.float32)
+        return LightClusters(np.zeros(0, np.uint32), empty, empty)
     p = np.asarray(positions, dtype=np.float64)[order]
     r = np.asarray(ranges, dtype=np.float64)[order]
     f = np.maximum(np.asarray(flux, dtype=np.float64)[order], 0.0)
-    starts = np.arange(0, n, group)
-    rec = np.empty((len(starts), 8), dtype=np.float64)
-    rec[:, 0:3] = np.minimum.reduceat(p, starts, axis=0)
-    rec[:, 3] = np.add.reduceat(f, starts)
-    rec[:, 4:7] = np.maximum.reduceat(p, starts, axis=0)
-    rec[:, 7] = np.maximum.reduceat(r, starts)
-    return LightClusters(order.astype(np.uint32), rec.astype(np.float32))
+    cl = _bounds(p, r, f, np.arange(0, n, group))
+    sup = np.empty((-(-len(cl) // fanout), 8), dtype=np.float64)
+    starts = np.arange(0, len(cl), fanout)
+    sup[:, 0:3] = np.minimum.reduceat(cl[:, 0:3], starts, axis=0)
+    sup[:, 3] = np.add.reduceat(cl[:, 3], starts)
+    sup[:, 4:7] = np.maximum.reduceat(cl[:, 4:7], starts, axis=0)
+    sup[:, 7] = np.maximum.reduceat(cl[:, 7], starts)
+    return LightClusters(order.astype(np.uint32), cl.astype(np.float32), sup.astype(np.float32))

@@ -376,7 +376,8 @@ class StbLighting(LightingMethod):
         if self._clusters is None or key != self._clusters_key:
             self._clusters = build_clusters(t.position[rows], t.range[rows], t.flux[rows])
             self._clusters_key = key
-            for name, arr in (("records", self._clusters.records), ("order", self._clusters.order)):
+            arrays = (("records", self._clusters.records()), ("order", self._clusters.order))
+            for name, arr in arrays:
                 data = np.ascontiguousarray(arr).tobytes() or bytes(16)
                 buf = self._cluster_buffers.get(name)
                 if buf is None or buf.size < len(data):
@@ -405,6 +406,7 @@ class StbLighting(LightingMethod):
             set_uniform(cs, "u_weight_cap", float(o["weight_cap"]))
             set_uniform(cs, "u_target_mode", TARGET_MODES[o["target"]])
             set_uniform(cs, "u_clusters", cl.count)
+            set_uniform(cs, "u_supers", len(cl.supers))
             self.bind_common(frame, cs)  # type: ignore[arg-type]  # same uniforms and buffers
             hiz.use(TEX_UNIT_HIZ)
             self._cluster_buffers["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
