@@ -423,6 +423,17 @@ AREA_POINT_RATIO = 0.03
 #: of the exact disk, median 0.2 % (tests/test_area_lights.py::
 #: test_disk_light_matches_closed_form, test_sphere_cut_by_floor_matches_closed_form).
 AREA_POLY_VERTS = 16
+#: GGX specular of an area light (LTC, common/area.glsl): the light's angular radius s
+#: (half extent / distance) against the lobe's width alpha. Below SPEC_POINT x alpha the
+#: point model's specular is used (exact for a light much smaller than the lobe), above
+#: SPEC_LTC x alpha the LTC integral, in between a linear blend of the two. A light
+#: below AREA_POINT_RATIO still takes the area path when it is wide for the lobe of a
+#: smooth surface (s > AREA_SPEC_POINT x alpha). Measured: tools/area_lights.py specular.
+AREA_SPEC_POINT = 0.15
+AREA_SPEC_LTC = 0.5
+#: GGX alpha clamp of brdf.glsl (alpha = max(roughness^2, this)); the LTC table's
+#: smallest alpha (tools/fit_ltc.py).
+GGX_ALPHA_MIN = 0.002
 #: Largest PCSS blocker-search / filter radius in shadow-map texels at the receiver
 #: (soft shadows of area lights, common/shadow.glsl): bounds the kernel's footprint.
 PCSS_MAX_TEXELS = 64.0

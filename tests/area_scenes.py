@@ -119,6 +119,26 @@ def area_stage_no_box(kind: str) -> Usd.Stage:
     return usda_stage(text[:a] + text[b:])
 
 
+def glossy_stage(kind: str, roughness: float, light: str | None = None) -> Usd.Stage:
+    """``area_stage_no_box`` with a pure GGX mirror-metal floor instead of the Lambert one
+    (diffuse 0, specular colour 1: Schlick's Fresnel is exactly 1, what Mitsuba's
+    ``roughconductor`` with ``material = none`` does), roughness ``roughness``
+    (alpha = roughness^2). The light's diffuse multiplier plays no part; ``light``: prim
+    text instead of ``LIGHTS[kind]``."""
+    text = SCENE_USDA.format(light=light or LIGHTS[kind])
+    a = text.index('def Cube "Box"')
+    b = text.index('def Scope "Looks"')
+    text = text[:a] + text[b:]
+    text = text.replace(
+        "color3f inputs:diffuseColor = (0.5, 0.5, 0.5)", "color3f inputs:diffuseColor = (0, 0, 0)"
+    )
+    text = text.replace(
+        "color3f inputs:specularColor = (0, 0, 0)", "color3f inputs:specularColor = (1, 1, 1)"
+    )
+    text = text.replace("float inputs:roughness = 1", f"float inputs:roughness = {roughness}")
+    return usda_stage(text)
+
+
 def many_area_lights_stage(n: int = 24, seed: int = 3) -> Usd.Stage:
     """``n`` lights cycling through rect, disk, sphere and cylinder (0.1-0.5 m), 0.3-1 m
     above the floor of ``SCENE_USDA`` around its box: STB's unbiasedness on area lights."""

@@ -5,21 +5,33 @@
 // clipped to the surface's horizon). The rect is its own polygon; the disk rim, the
 // sphere's silhouette circle and the cylinder's visible strip (two silhouette lines and
 // the two near half-rims) are polygons of LIM_AREA_POLY_VERTS vertices scaled to keep
-// their area. Specular (GGX): still the point model (the centre's direction and the
-// far-field intensity); the representative-point method (Karis 2013) and a lobe widened
-// by the light's angular size were measured and were worse on rough surfaces and not
-// reliably better on smooth ones (docs/area_lights/README.md). LTC is the next step.
+// their area. A sphere or a tube of uniform radiance looks, from P, exactly like the
+// region its silhouette bounds, so the same polygon serves both lobes.
+// Specular (GGX): linearly transformed cosines (Heitz, Dupuy, Hill & Neubelt 2016): the
+// polygon, in the frame (tangent towards V, bitangent, N), is mapped by the fitted
+// inverse matrix Minv(N.V, alpha) and integrated as a clamped cosine (the same contour
+// integral, clipped to the transformed horizon) x the lobe's albedo with Schlick's
+// Fresnel split out (tools/fit_ltc.py, stb_hydra/data/ltc_ggx.npy, bound as u_ltc).
+// A light much narrower than the lobe (s = half extent / distance below
+// LIM_AREA_SPEC_POINT x alpha) keeps the point model's specular, which is exact there;
+// above LIM_AREA_SPEC_LTC x alpha the LTC integral; linear blend in between.
 //
 // Shaping (cone, focus, focusTint, IES) is evaluated once per shading point, towards
 // the point from the light's centre, and multiplies the area's radiance: far from the
 // light this is exactly the point model's intensity distribution (I0 x emission x
-// shaping). A light whose half extent is below LIM_AREA_POINT_RATIO of its distance,
-// a treatAsPoint sphere, a mesh light and a zero-size light use the point model.
+// shaping). A light whose half extent is below LIM_AREA_POINT_RATIO of its distance
+// (and, on a smooth surface, below LIM_AREA_SPEC_POINT x alpha), a treatAsPoint
+// sphere, a mesh light and a zero-size light use the point model.
 #ifndef STB_AREA_GLSL
 #define STB_AREA_GLSL
 #include "common/brdf.glsl"
 
 #define AREA_MAXV (2 * LIM_AREA_POLY_VERTS + 2)
+
+// LTC table (tools/fit_ltc.py): layer 0 Minv (m00, m02, m20, m22) with m11 = 1, layer 1
+// (n, f): the lobe's albedo with F = 1 and its (1 - V.H)^5-weighted part. Texel (j, i):
+// sqrt(alpha) from sqrt(LIM_GGX_ALPHA_MIN) to 1, sqrt(1 - N.V) from 0 to 1.
+uniform sampler2DArray u_ltc;
 
 vec3 light_bitangent(Light L) { return cross(-L.axis_emit.xyz, L.tangent_type.xyz); }
 
@@ -146,6 +158,37 @@ float polygon_form_factor(vec3 v[AREA_MAXV], int n, vec3 N) {
     return min(abs(sum) / (2.0 * PI), 1.0);
 }
 
+// Weight of the LTC specular against the point model's (0: point, 1: LTC) for a light
+// of half extent `ext` at distance `dist` on a lobe of width alpha.
+float area_spec_weight(float ext, float dist, float alpha) {
+    float x = ext / (max(dist, LIM_MIN_LIGHT_DISTANCE) * alpha);
+    return clamp((x - LIM_AREA_SPEC_POINT) / (LIM_AREA_SPEC_LTC - LIM_AREA_SPEC_POINT), 0.0, 1.0);
+}
+
+// GGX specular x cos of a polygon (relative to P), integrated by LTC: per unit radiance,
+// with Schlick's Fresnel (f0).
+vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
+    float NoV = clamp(dot(s.N, s.V), 1e-4, 1.0);
+    vec3 T1 = s.V - s.N * dot(s.N, s.V);
+    float lt = length(T1);
+    T1 = lt > 1e-5 ? T1 / lt
+        : normalize(abs(s.N.y) < 0.9 ? cross(s.N, vec3(0.0, 1.0, 0.0)) : cross(s.N, vec3(1.0, 0.0, 0.0)));
+    vec3 T2 = cross(s.N, T1);
+    vec2 size = vec2(textureSize(u_ltc, 0).xy);
+    float amin = sqrt(LIM_GGX_ALPHA_MIN);
+    vec2 t = vec2((sqrt(s.alpha) - amin) / (1.0 - amin), sqrt(1.0 - NoV));
+    vec2 uv = (clamp(t, 0.0, 1.0) * (size - 1.0) + 0.5) / size;
+    vec4 m = texture(u_ltc, vec3(uv, 0.0));
+    vec2 nf = texture(u_ltc, vec3(uv, 1.0)).xy;
+    vec3 w[AREA_MAXV];
+    for (int i = 0; i < n; ++i) {
+        vec3 q = vec3(dot(T1, v[i]), dot(T2, v[i]), dot(s.N, v[i]));
+        w[i] = vec3(m.x * q.x + m.y * q.z, q.y, m.z * q.x + m.w * q.z);
+    }
+    float I = polygon_form_factor(w, n, vec3(0.0, 0.0, 1.0));
+    return (s.f0 * (nf.x - nf.y) + nf.y) * I;
+}
+
 // Unshadowed radiance reflected towards s.V by light L, diffuse and specular parts
 // (nits, before the light's diffuse/specular multipliers), WITHOUT the scalar shape
 // (cone x normalised IES) -- the caller multiplies by light_shape_scalar(L, -Ldir).
@@ -156,10 +199,14 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     float dist;
     float f = light_falloff(L, s.P, Ldir, dist);
     if (f <= 0.0) return false;
-    if (!light_is_area(L, dist)) {
+    float ext = light_half_extent(L);
+    // Specular LTC weight (0 when the light has no specular: nothing to integrate).
+    float ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
+    vec3 dsp, ssp;
+    brdf_eval(s, Ldir, dsp, ssp);
+    if (!light_is_area(L, dist) && ws <= 0.0) {
         vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
-        brdf_eval(s, Ldir, diff, spec);
-        diff *= E; spec *= E;
+        diff = dsp * E; spec = ssp * E;
         return true;
     }
     vec3 v[AREA_MAXV];
@@ -170,13 +217,10 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
     float F = polygon_form_factor(v, n, s.N);
     diff = s.diffuse * Lrad * F;
-    // Specular: the point model (the centre's direction, the far-field illuminance).
-    // Measured against a quadrature of the same GGX lobe over the light (docs/area_lights):
-    // unbiased in the mean for roughness >= 0.4, per-pixel errors 1-45 %; smooth surfaces
-    // need LTC (not done).
-    vec3 dsp, ssp;
-    brdf_eval(s, Ldir, dsp, ssp);
-    spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    // Specular: the point model (the centre's direction, the far-field illuminance) for
+    // a light narrow against the lobe, LTC for a wide one.
+    if (ws < 1.0) spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * (1.0 - ws);
+    if (ws > 0.0) spec += ltc_specular(s, v, n) * Lrad * ws;
     return true;
 }
 

@@ -31,7 +31,7 @@ bool read_surface(ivec2 px, out Surface s) {
     vec4 br = texelFetch(g_base_rough, px, 0);
     vec4 fm = texelFetch(g_f0_metal, px, 0);
     s.roughness = clamp(br.a, 0.02, 1.0);
-    s.alpha = max(s.roughness * s.roughness, 0.002);
+    s.alpha = max(s.roughness * s.roughness, LIM_GGX_ALPHA_MIN);
     s.diffuse = br.rgb * (1.0 - fm.a);
     s.f0 = fm.rgb;
     return true;

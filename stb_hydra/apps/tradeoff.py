@@ -476,8 +476,10 @@ def write_report(rows, path: Path, meta: dict, budgets: list[float] | None) -> N
         f"{meta['eps']:g}); FLIP: LDR-FLIP of the display-referred images; temporal: mean "
         "|frame-to-frame change| of the displayed image (display-referred) minus the "
         "reference's. `A` = frames accumulated (sliding mean, static camera).",
-        "",
     ]
+    if meta.get("mitsuba"):
+        lines.append(f"- `reference` against Mitsuba 3: {meta['mitsuba']}")
+    lines.append("")
     for key, heading in (
         (
             "frame_ms",
@@ -606,6 +608,7 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
     load_before, t0 = _load(), _time.perf_counter()
     rows: list[dict] = []
     ref: Run | None = None
+    truth: dict = {}
     bar = tqdm(total=total, unit="frame", desc=f"tradeoff {name}", disable=None, file=sys.stderr)
     pool = EnginePool(stage, args)
     try:
@@ -615,6 +618,7 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
             bar.update(args.warmup + n - len(run.times))  # warm-up + frames skipped
             if u.method == "reference":
                 ref = run
+                truth = mitsuba_check(stage, run.images[0], args)
             if ref is None:
                 raise CliError("the reference must be measured first")
             rows.extend(evaluate(run, ref, name, args))
@@ -634,6 +638,7 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
         "wall_s": _time.perf_counter() - t0,
         "command": command_line(args),
         "eps": args.eps,
+        **truth,
     }
     write_text_atomic(out / "tradeoff.json", json.dumps({**meta, "name": name}, indent=2))
     finish_report(rows, out, meta, name, args.budgets)
@@ -642,6 +647,44 @@ def run_tradeoff(args, units: list[Unit] | None = None) -> list[dict]:
         file=sys.stderr,
     )
     return rows
+
+
+def mitsuba_check(stage, ref_img: np.ndarray, args) -> dict:
+    """The reference's own per-pixel error against Mitsuba 3 (an independent renderer,
+    ``metrics.mitsuba_truth``): {} when the ``mitsuba`` wheel is not installed or
+    ``--mitsuba-spp 0``; a ``mitsuba`` line saying why when the stage holds something the
+    conversion does not support (then nothing is compared)."""
+    spp = int(getattr(args, "mitsuba_spp", 0) or 0)
+    if spp <= 0:
+        return {}
+    try:
+        from ..metrics import mitsuba_truth as mt
+    except ImportError:
+        return {}
+    try:
+        img, hit, light, nrm = mt.render_mitsuba(
+            stage,
+            args.width,
+            args.height,
+            spp,
+            seed=args.seed,
+            emitter_samples=4,
+            camera=args.camera,
+        )
+    except ValueError as exc:
+        return {"mitsuba": f"not compared (conversion: {exc})"}
+    err, mask, _ = mt.compare(ref_img, img, hit, light, nrm)
+    if err.size == 0:
+        return {"mitsuba": "not compared (no lit pixels)"}
+    med, p95 = float(np.median(err)), float(np.percentile(err, 95))
+    return {
+        "mitsuba": f"per-pixel relative error median {med * 100:.2f} %, p95 {p95 * 100:.2f} % "
+        f"over {int(mask.sum())} px (Mitsuba 3 scalar_rgb `direct`, {spp} spp x 4 light "
+        "samples; pixels over 1 % of the floor's maximum, light shapes and silhouette "
+        "edges left out; Mitsuba's own noise included)",
+        "mitsuba_median": med,
+        "mitsuba_p95": p95,
+    }
 
 
 def run_moving_scenario(args) -> list[dict]:
@@ -908,6 +951,13 @@ def add_parser(sub) -> None:
         help="accumulated images per stb config for temporal instability",
     )
     p.add_argument("--eps", type=float, default=1e-2, help="relMSE epsilon (default 1e-2)")
+    p.add_argument(
+        "--mitsuba-spp",
+        type=int,
+        default=64,
+        help="with the mitsuba wheel installed: the reference's error against Mitsuba 3 at "
+        "this many samples per pixel, when the stage converts (0: skip; default 64)",
+    )
     p.add_argument(
         "--hdr-flip",
         action=argparse.BooleanOptionalAction,

@@ -156,7 +156,20 @@ class ShaderLibrary:
         self.ctx = ctx
         self._programs: dict[ProgramKey, moderngl.Program] = {}
         self._compute: dict[ProgramKey, moderngl.ComputeShader] = {}
+        self._ltc: moderngl.TextureArray | None = None
         self.compiled = 0
+
+    def ltc_texture(self) -> moderngl.TextureArray:
+        """The GGX LTC table (``data/ltc_ggx.npy``, tools/fit_ltc.py) as a 2-layer
+        rgba32f texture array, bilinear, clamped: ``u_ltc`` of common/area.glsl."""
+        if self._ltc is None:
+            table = load_ltc_table()
+            layers, rows, cols, _ = table.shape
+            tex = self.ctx.texture_array((cols, rows, layers), 4, table.tobytes(), dtype="f4")
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = tex.repeat_y = False
+            self._ltc = tex
+        return self._ltc
 
     @staticmethod
     def _key(stages: Iterable[str], defines: Mapping[str, object] | None) -> ProgramKey:
@@ -202,6 +215,15 @@ class ShaderLibrary:
 
 
 _libraries: dict[int, ShaderLibrary] = {}
+
+
+def load_ltc_table() -> np.ndarray:
+    """The fitted GGX LTC table, float32 (2, rows = view angle, cols = roughness, 4)."""
+    import io
+
+    raw = resources.files("stb_hydra").joinpath("data/ltc_ggx.npy").read_bytes()
+    table = np.load(io.BytesIO(raw), allow_pickle=False)
+    return np.ascontiguousarray(table, dtype=np.float32)
 
 
 def shader_library(ctx: moderngl.Context) -> ShaderLibrary:

@@ -52,7 +52,7 @@ IMAGE_UNIT_PIXEL_TERMS = 1
 IMAGE_UNIT_BIGTILE = 2
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
-#: ``LightingMethod.bind_common`` hands out from 0 (at most 8: G-buffer, IES, atlas, sun).
+#: ``LightingMethod.bind_common`` hands out from 0 (at most 9: G-buffer, LTC, IES, atlas, sun).
 TEX_UNIT_HIZ = 12
 
 # --- Packed light record (struct Light, common/lights.glsl) ---------------------------
@@ -167,6 +167,9 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
+        "LIM_AREA_SPEC_POINT": f"{limits.AREA_SPEC_POINT:.6f}",
+        "LIM_AREA_SPEC_LTC": f"{limits.AREA_SPEC_LTC:.6f}",
+        "LIM_GGX_ALPHA_MIN": f"{limits.GGX_ALPHA_MIN:.6f}",
         "LIM_PCSS_MAX_TEXELS": f"{limits.PCSS_MAX_TEXELS:.1f}",
         "LIM_BIG_TILE_CLUSTER_LIGHTS": str(limits.BIG_TILE_CLUSTER_LIGHTS),
         "LIM_BIG_TILE_CLUSTER_FANOUT": str(limits.BIG_TILE_CLUSTER_FANOUT),

@@ -133,8 +133,8 @@ class LightingMethod:
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:
-        """Bind G-buffer samplers, light buffer, IES array, shadow atlas and records,
-        sun shadow. Returns the next free texture unit."""
+        """Bind G-buffer samplers, light buffer, LTC table, IES array, shadow atlas and
+        records, sun shadow. Returns the next free texture unit."""
         unit = first_unit
         tex = frame.buffers.textures
         for name in GBUFFER_SAMPLERS:
@@ -145,6 +145,10 @@ class LightingMethod:
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
+        if "u_ltc" in prog:  # area lights' GGX specular (common/area.glsl)
+            shader_library(frame.ctx).ltc_texture().use(unit)
+            cast(moderngl.Uniform, prog["u_ltc"]).value = unit
+            unit += 1
         d = self.delegate
         if d is not None and "u_ies" in prog and d.ies_texture is not None:
             d.ies_texture.use(unit)
