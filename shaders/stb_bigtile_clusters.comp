@@ -33,6 +33,12 @@ layout(std430, binding = SSBO_STB_CLUSTERS) readonly buffer Clusters { Cluster c
 layout(std430, binding = SSBO_STB_CLUSTER_LIGHTS) readonly buffer ClusterLights {
     uint cluster_lights[];  // FoV light index, in Morton order (cluster c: c x G ...)
 };
+// The same lights' records in Morton order: a cluster's lights are read from one
+// contiguous run (read through lights[] they were scattered over the whole buffer,
+// and the pass slowed down with the buffer's size).
+layout(std430, binding = SSBO_STB_CLUSTER_RECORDS) readonly buffer ClusterRecords {
+    Light cluster_records[];
+};
 uniform ivec2 u_block;          // slot block per big tile (K = x * y)
 uniform int u_clusters;         // cluster count
 uniform int u_supers;           // super-cluster count (<= LIM_BIG_TILE_SUPERS_MAX)
@@ -145,11 +151,10 @@ void main() {
     float sum_t = 0.0, sel_t = 0.0;
     uint sel = LIM_EMPTY_LIGHT_INDEX;
     for (int k = first; k < last; ++k) {
-        uint i = cluster_lights[k];
-        float t = target(i, A, B, C, R);
+        float t = target_light(cluster_records[k], A, B, C, R);
         sum_t += t;
         if (t > 0.0 && rng_float(rng) * sum_t <= t) {
-            sel = i;
+            sel = cluster_lights[k];
             sel_t = t;
         }
     }

@@ -49,12 +49,17 @@ def main(argv: list[str] | None = None) -> int:
             )
             engines[(n, m)] = Engine(str(path), s)
     ms: dict[tuple[int, str], list[float]] = {k: [] for k in engines}
+    cpu: dict[tuple[int, str], list[float]] = {k: [] for k in engines}
+    rebuilt: dict[tuple[int, str], int] = {k: 0 for k in engines}
     try:
         for i in range(a.frames + 2):
             for k, eng in engines.items():
-                eng.render_frame()
+                frame = eng.render_frame()
                 if i >= 2:  # compile and first upload excluded
-                    ms[k].append(eng.timings.frames[-1].get("lighting.stb_bigtile", 0.0))
+                    t = eng.timings.frames[-1]
+                    ms[k].append(t.get("lighting.stb_bigtile", 0.0))
+                    cpu[k].append(t.get("lighting.stb_clusters", 0.0))
+                    rebuilt[k] += int(frame.stats.get("stb_clusters_rebuilt", 0))
     finally:
         for eng in engines.values():
             eng.release()
@@ -62,7 +67,11 @@ def main(argv: list[str] | None = None) -> int:
         base = float(np.median(ms[(counts[0], m)]))
         for n in counts:
             med = float(np.median(ms[(n, m)]))
-            print(f"{m:9s} {n:7d} lights: big-tile pass {med:8.2f} ms (x{med / base:.2f})")
+            c = float(np.median(cpu[(n, m)]))
+            print(
+                f"{m:9s} {n:7d} lights: big-tile pass {med:8.2f} ms (x{med / base:.2f}); "
+                f"cluster build (CPU) {c:.2f} ms, rebuilt in {rebuilt[(n, m)]} of {a.frames} frames"
+            )
     return 0
 
 

@@ -41,9 +41,8 @@ void region_sphere(ivec2 tile, out vec3 C, out float R) {
     R = R * 1.001 + 1e-4;
 }
 
-float target(uint i, vec3 A, vec3 B, vec3 C, float R) {
+float target_light(Light L, vec3 A, vec3 B, vec3 C, float R) {
     if (u_target_mode == 1) return 1.0;
-    Light L = lights[i];
     vec3 P = L.pos_range.xyz;
     vec3 ab = B - A;
     float t = clamp(dot(P - A, ab) / max(dot(ab, ab), 1e-20), 0.0, 1.0);
@@ -67,6 +66,11 @@ float target(uint i, vec3 A, vec3 B, vec3 C, float R) {
     vec3 w = -d / max(length(d), 1e-12);                              // light -> segment
     float shape = emission_shape(L, w) * light_shape_scalar(L, w);
     return p * max(shape, LIM_BIGTILE_SHAPE_FLOOR);
+}
+
+float target(uint i, vec3 A, vec3 B, vec3 C, float R) {
+    if (u_target_mode == 1) return 1.0;
+    return target_light(lights[i], A, B, C, R);
 }
 
 // The tile's central segment (world, A at the min depth, B at the max) and, for the

@@ -44,6 +44,8 @@ SSBO_CELL_EXTRA = 4
 #: and flux (one array); the FoV light index of every clustered light (Morton order).
 SSBO_STB_CLUSTERS = 5
 SSBO_STB_CLUSTER_LIGHTS = 6
+#: STB's FoV light records in the clusters' Morton order (contiguous per cluster).
+SSBO_STB_CLUSTER_RECORDS = 7
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -183,6 +185,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_CELL_EXTRA": str(SSBO_CELL_EXTRA),
         "SSBO_STB_CLUSTERS": str(SSBO_STB_CLUSTERS),
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
+        "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),

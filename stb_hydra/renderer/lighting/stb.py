@@ -42,6 +42,7 @@ from ... import limits
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
 from ..graph import DERIVED, Rec, Resource, Tex
+from ..light_buffer import pack_lights
 from ..records import DistantLights, FrameBlock, InViewLights, LightBuffer
 from ..shader_constants import (
     IMAGE_UNIT_BIGTILE,
@@ -51,6 +52,7 @@ from ..shader_constants import (
     QUAD_FWD_Y_SHIFT,
     QUAD_LUT_SLOT_SHIFT,
     SSBO_STB_CLUSTER_LIGHTS,
+    SSBO_STB_CLUSTER_RECORDS,
     SSBO_STB_CLUSTERS,
     TEX_UNIT_HIZ,
 )
@@ -374,9 +376,15 @@ class StbLighting(LightingMethod):
         t, rows = self.delegate.light_table, frame.get(InViewLights).rows
         key = (int(t.version), np.ascontiguousarray(rows).tobytes())
         if self._clusters is None or key != self._clusters_key:
+            frame.stats["stb_clusters_rebuilt"] = 1
             self._clusters = build_clusters(t.position[rows], t.range[rows], t.flux[rows])
             self._clusters_key = key
-            arrays = (("records", self._clusters.records()), ("order", self._clusters.order))
+            light_records = pack_lights(t, rows[self._clusters.order])  # Morton order
+            arrays = (
+                ("records", self._clusters.records()),
+                ("order", self._clusters.order),
+                ("lights", light_records),
+            )
             for name, arr in arrays:
                 data = np.ascontiguousarray(arr).tobytes() or bytes(16)
                 buf = self._cluster_buffers.get(name)
@@ -397,8 +405,9 @@ class StbLighting(LightingMethod):
         tiles: tuple[int, int],
     ) -> None:
         """Big-tile reservoirs drawn from light clusters (stb_bigtile_clusters.comp)."""
-        with frame.timings_scope("stb_bigtile"):
+        with frame.timings_scope("stb_clusters"):  # CPU: rebuilt only on change
             cl = self.light_clusters(frame)
+        with frame.timings_scope("stb_bigtile"):
             cs = shader_library(frame.ctx).compute("stb_bigtile_clusters.comp", defines)
             o = self.o
             set_uniform(cs, "u_block", SLOT_BLOCKS[int(o["K"])])
@@ -411,6 +420,7 @@ class StbLighting(LightingMethod):
             hiz.use(TEX_UNIT_HIZ)
             self._cluster_buffers["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
             self._cluster_buffers["order"].bind_to_storage_buffer(SSBO_STB_CLUSTER_LIGHTS)
+            self._cluster_buffers["lights"].bind_to_storage_buffer(SSBO_STB_CLUSTER_RECORDS)
             big.bind_to_image(IMAGE_UNIT_BIGTILE, read=False, write=True)
             cs.run(tiles[0], tiles[1], 1)
             frame.ctx.memory_barrier()
