@@ -21,7 +21,7 @@ from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.scenegen.chess import build_chess_stage
 from stb_hydra.shadows.atlas import AtlasRect
-from stb_hydra.shadows.capture import capture_for
+from stb_hydra.shadows.capture import capture_for_row
 
 
 def main() -> None:
@@ -43,17 +43,7 @@ def main() -> None:
         t = eng.delegate.light_table
         rows = np.nonzero(t.local_mask())[0]
         rows = rows[:: max(1, len(rows) // args.maps)][: args.maps]
-        caps = [
-            capture_for(
-                t.position[r],
-                t.direction[r],
-                t.range[r],
-                t.radius[r],
-                t.cone_cutoff[r],
-                t.emission[r],
-            )
-            for r in rows
-        ]
+        caps = [capture_for_row(t, r) for r in rows]
         rect = AtlasRect(0, 0, args.size)
         ctx = eng.delegate.ctx
         ref = None

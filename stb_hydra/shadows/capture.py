@@ -20,6 +20,7 @@ import functools
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -85,6 +86,16 @@ def capture_for(
         rng,
         near,
         min(half * 1.02 + math.radians(1.0), math.radians(85.0)) if spot else 0.0,
+    )
+
+
+def capture_for_row(table: Any, row: int) -> Capture:
+    """:func:`capture_for` of light-table row ``row`` (a ``LightTable`` or anything with
+    its ``position``, ``direction``, ``range``, ``radius``, ``cone_cutoff`` and
+    ``emission`` columns)."""
+    t, r = table, row
+    return capture_for(
+        t.position[r], t.direction[r], t.range[r], t.radius[r], t.cone_cutoff[r], t.emission[r]
     )
 
 

@@ -24,7 +24,7 @@ from ...shadows.atlas import ShadowAtlas
 from ...shadows.capture import (
     RECORD_FLOATS,
     Capture,
-    capture_for,
+    capture_for_row,
     omni_face_view_projs_many,
     spot_view_proj,
 )
@@ -191,14 +191,7 @@ class ShadowAtlasTask(Pass):
             old_row = self._row_of.get(key)
             if old_row is not None and old_row != r:
                 self._forget(key)
-            c = capture_for(
-                t.position[r],
-                t.direction[r],
-                t.range[r],
-                t.radius[r],
-                t.cone_cutoff[r],
-                t.emission[r],
-            )
+            c = capture_for_row(t, r)
             dyn = bool(t.shadow_dynamic[r])
             if key not in sch:
                 sch.add_light(
