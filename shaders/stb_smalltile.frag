@@ -61,7 +61,7 @@ void main() {
     }
     if (npts == 0) { o_samples = result; return; }
     kd /= float(npts); ks /= float(npts); rough /= float(npts);
-    float a = max(rough * rough, 0.002);
+    float a = max(rough * rough, LIM_GGX_ALPHA_MIN);
     float spec_n = max(2.0 / (a * a) - 2.0, 1.0);          // Blinn-Phong exponent from GGX alpha
     float spec_norm = (spec_n + 2.0) / (2.0 * PI);
 
