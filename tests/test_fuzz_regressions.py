@@ -79,7 +79,9 @@ def test_truncated_dome_texture_is_a_warning_not_a_hang(gl_ctx, tmp_path, testda
     )
     t0 = time.perf_counter()
     ws, imgs = _render_all(gl_ctx, _scene(extra=dome))
-    assert time.perf_counter() - t0 < 30.0
+    # The hang was many minutes; the renders of every method take 5-40 s on 2 loaded
+    # llvmpipe cores (37 s once in CI while another job ran), so the bound is loose.
+    assert time.perf_counter() - t0 < 150.0
     (w,) = _naming(ws, "</Sky>", "sky.exr", "unreadable")
     assert "using white" in w
     # the white fallback lights the floor: rho * L = 0.5 nit (plus the sphere light)
