@@ -33,8 +33,9 @@ Rules (STB_SPEC "Shadow atlas"):
   submits (``set_work``). In strict urgency order, a map is taken only while the
   predicted milliseconds *after* it stay <= ``budget_ms`` (the static reserve:
   ``static_reserve * budget_ms``), so a frame never plans past its time budget --
-  except the first map of a frame, which is always taken (starvation guard). When
-  both budgets are given, a frame closes at whichever limit it reaches first.
+  except the first map of a frame, which is always taken (starvation guard; a
+  splittable map, below, only its first face(s)). When both budgets are given, a
+  frame closes at whichever limit it reaches first. A split map closes the frame.
 * Face-granular captures (time budget only): a map registered with ``faces`` > 1 (an
   omni cube: 6) whose remaining faces do not fit the milliseconds left is split: the
   longest run of its remaining faces (in face order) that fits is planned this frame
