@@ -545,12 +545,13 @@ def _shadow_summary(m: Any, budget: int | None, budget_ms: float | None) -> dict
     seconds; None if never within the run)."""
     import numpy as np
 
-    # frames that captured something (after every map is fresh a static scene captures
-    # nothing, and those frames say nothing about the budget)
+    # frames that captured something, some faces of a split map included (after every
+    # map is fresh a static scene captures nothing, and those frames say nothing about
+    # the budget)
     cap = [
         p.get("shadow_atlas", 0.0)
         for p, st in zip(m.passes, m.frame_stats)
-        if st.get("shadow_maps_updated", 0)
+        if st.get("shadow_maps_updated", 0) or st.get("shadow_texels_rendered", 0)
     ]
     return {
         "shadow_budget_texels": budget,

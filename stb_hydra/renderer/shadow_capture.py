@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, NamedTuple, cast
 
 import moderngl
@@ -72,6 +73,9 @@ class ShadowCapturer:
         self.atlas_fbo = ctx.framebuffer(color_attachments=[self.atlas])
         self.atlas_fbo.clear(1.0, 1.0, 1.0, 1.0)
         self._temps: dict[tuple[int, int], tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
+        #: Depth targets of split omni captures in progress (key -> target), kept
+        #: between frames until the chunk that completes the map copies them.
+        self._staging: dict[str, tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
         self._faces = face_rotations().astype(np.float32)
         self.captures = 0
         self.texels = 0
@@ -82,16 +86,62 @@ class ShadowCapturer:
         """Render passes of one omni capture in this mode (the copy included)."""
         return limits.SHADOW_OMNI_PASSES if self.mode == "per_face" else 2
 
+    def _target(self, w: int, h: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        tex = self.ctx.depth_texture((w, h))
+        tex.compare_func = ""  # read raw depth (moderngl enables comparison by default)
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        tex.repeat_x = tex.repeat_y = False
+        return tex, self.ctx.framebuffer(depth_attachment=tex)
+
     def _temp(self, w: int, h: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
         t = self._temps.get((w, h))
         if t is None:
-            tex = self.ctx.depth_texture((w, h))
-            tex.compare_func = ""  # read raw depth (moderngl enables comparison by default)
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-            tex.repeat_x = tex.repeat_y = False
-            t = (tex, self.ctx.framebuffer(depth_attachment=tex))
-            self._temps[(w, h)] = t
+            t = self._temps[(w, h)] = self._target(w, h)
         return t
+
+    def _stage(
+        self, key: str, w: int, h: int, first: bool
+    ) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+        """The split capture's depth target of ``key`` (a fresh one for the first chunk)."""
+        t = self._staging.get(key)
+        if t is not None and (first or t[0].size != (w, h)):
+            self.drop_partial(key)
+            t = None
+        if t is None:
+            if not first:
+                raise RuntimeError(f"{key}: split shadow capture continued without its start")
+            t = self._staging[key] = self._target(w, h)
+            t[1].clear(depth=1.0)
+        return t
+
+    def drop_partial(self, key: str) -> None:
+        """Release the depth target of ``key``'s split capture in progress, if any."""
+        t = self._staging.pop(key, None)
+        if t is not None:
+            t[1].release()
+            t[0].release()
+
+    def _draw_faces(
+        self,
+        delegate: GLRenderDelegate,
+        vis: np.ndarray,
+        vps: np.ndarray,
+        faces: Iterable[int],
+        f: int,
+    ) -> None:
+        """Draw the culled batches of cube ``faces`` into their cells of the bound 3x2
+        target (cell side ``f``), one pass per face."""
+        ctx = self.ctx
+        batches = delegate.batch_arrays().batches
+        prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
+        for i in faces:
+            ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
+            set_uniform(prog, "u_light_view_proj", vps[i])
+            for j in np.nonzero(vis[i])[0].tolist():
+                b = batches[j]
+                delegate.vertex_array(b, prog, depth_only=True).render(
+                    moderngl.TRIANGLES, instances=b.count
+                )
 
     def visible(self, delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> np.ndarray:
         """(F, B) bool: batch b is drawn into face f (F = 6 omni, 1 spot); static maps
@@ -106,9 +156,24 @@ class ShadowCapturer:
         return visible_faces(frustum_planes(vps), arr.lo, arr.hi) & keep
 
     def capture(
-        self, delegate: GLRenderDelegate, key: str, c: Capture, rect: AtlasRect, dynamic: bool
+        self,
+        delegate: GLRenderDelegate,
+        key: str,
+        c: Capture,
+        rect: AtlasRect,
+        dynamic: bool,
+        faces: tuple[int, ...] | None = None,
+        first: bool = True,
+        complete: bool = True,
     ) -> CaptureWork:
-        """Render the light's depth and copy it into ``rect`` of the atlas."""
+        """Render the light's depth and copy it into ``rect`` of the atlas.
+
+        ``faces`` (an omni map in "per_face" mode): render only these cube faces, into
+        ``key``'s own depth target kept across frames (``first``: a fresh one), and copy
+        into the atlas only with ``complete`` -- the same texels as a whole capture when
+        every face was rendered with the same ``c`` (``ShadowScheduler`` splits)."""
+        if faces is not None:
+            return self._capture_faces(delegate, key, c, rect, dynamic, faces, first, complete)
         ctx = self.ctx
         border = limits.SHADOW_MAP_BORDER_PX
         interior = rect.size - 2 * border
@@ -145,15 +210,7 @@ class ShadowCapturer:
                     ctx.disable_direct(_GL_CLIP_DISTANCE0 + i)
                 passes = 2
             else:
-                prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
-                for i in range(6):
-                    ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
-                    set_uniform(prog, "u_light_view_proj", vps[i])
-                    for j in np.nonzero(vis[i])[0].tolist():
-                        b = batches[j]
-                        delegate.vertex_array(b, prog, depth_only=True).render(
-                            moderngl.TRIANGLES, instances=b.count
-                        )
+                self._draw_faces(delegate, vis, vps, range(6), f)
                 passes = limits.SHADOW_OMNI_PASSES
             texels = 6 * f * f
         else:
@@ -176,6 +233,43 @@ class ShadowCapturer:
         self.triangles += triangles
         self.captures += 1
         return CaptureWork(texels, passes, triangles)
+
+    def _capture_faces(
+        self,
+        delegate: GLRenderDelegate,
+        key: str,
+        c: Capture,
+        rect: AtlasRect,
+        dynamic: bool,
+        faces: tuple[int, ...],
+        first: bool,
+        complete: bool,
+    ) -> CaptureWork:
+        """Some faces of a split omni capture (``capture`` with ``faces``)."""
+        if not c.omni or self.mode != "per_face":
+            raise ValueError("only omni maps captured per face can be split into faces")
+        interior = rect.size - 2 * limits.SHADOW_MAP_BORDER_PX
+        if interior < 4:
+            return CaptureWork(0, 0, 0.0)
+        ctx = self.ctx
+        sel = sorted(set(faces))
+        vis = self.visible(delegate, c, dynamic)
+        triangles = float((vis[sel] * delegate.batch_arrays().triangles).sum())
+        f = max(interior // 2, 4)
+        tex, fbo = self._stage(key, 3 * f, 2 * f, first)
+        fbo.use()
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        self._draw_faces(delegate, vis, capture_view_projs(c).astype(np.float32), sel, f)
+        ctx.disable(moderngl.DEPTH_TEST)
+        if complete:
+            self._copy(delegate, c, rect, tex, interior)
+            self.drop_partial(key)
+            self.captures += 1
+        texels = len(sel) * f * f
+        self.texels += texels
+        self.triangles += triangles
+        return CaptureWork(texels, len(sel) + int(complete), triangles)
 
     def _copy(
         self,
@@ -210,6 +304,8 @@ class ShadowCapturer:
         return map_record(c, rect, self.size)
 
     def release(self) -> None:
+        for key in list(self._staging):
+            self.drop_partial(key)
         for tex, fbo in self._temps.values():
             fbo.release()
             tex.release()

@@ -60,23 +60,26 @@ def triangles_submitted(
     lo: np.ndarray,
     hi: np.ndarray,
     triangles: np.ndarray,
+    *,
+    per_face: bool = False,
 ) -> np.ndarray:
-    """(L,) triangles each capture submits after culling (every face counts its own).
+    """(L,) triangles each capture submits after culling (every face counts its own);
+    ``per_face``: (L, F), each face's own.
 
     ``view_projs`` (L, F, 4, 4) per light and face, ``face_valid`` (L, F) bool (a spot
     light has one face), ``centers`` (L, 3) / ``radii`` (L,) the range spheres, ``lo``/
     ``hi`` (B, 3) batch bounds, ``triangles`` (B,) per batch (instances included;
     zero for batches a light must not draw, e.g. dynamic ones into a static map).
     """
-    n = len(view_projs)
-    out = np.zeros(n, dtype=np.float64)
+    n, n_faces = face_valid.shape
+    out = np.zeros((n, n_faces), dtype=np.float64)
     if n == 0 or len(lo) == 0:
-        return out
+        return out if per_face else out.sum(axis=1)
     tri = np.asarray(triangles, dtype=np.float64)
     for s in range(0, n, _CHUNK):
         e = min(s + _CHUNK, n)
         vis = visible_faces(frustum_planes(view_projs[s:e]), lo, hi)  # (l, F, B)
         vis &= face_valid[s:e, :, None]
         vis &= boxes_in_sphere(centers[s:e], radii[s:e], lo, hi)[:, None, :]
-        out[s:e] = (vis.sum(axis=1) * tri).sum(axis=1)
-    return out
+        out[s:e] = vis @ tri
+    return out if per_face else out.sum(axis=1)

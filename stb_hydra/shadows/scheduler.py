@@ -33,8 +33,20 @@ Rules (STB_SPEC "Shadow atlas"):
   submits (``set_work``). In strict urgency order, a map is taken only while the
   predicted milliseconds *after* it stay <= ``budget_ms`` (the static reserve:
   ``static_reserve * budget_ms``), so a frame never plans past its time budget --
-  except the first map of a frame, which is always taken (starvation guard). When
-  both budgets are given, a frame closes at whichever limit it reaches first.
+  except the first map of a frame, which is always taken (starvation guard; a
+  splittable map, below, only its first face(s)). When both budgets are given, a
+  frame closes at whichever limit it reaches first. A split map closes the frame.
+* Face-granular captures (time budget only): a map registered with ``faces`` > 1 (an
+  omni cube: 6) whose remaining faces do not fit the milliseconds left is split: the
+  longest run of its remaining faces (in face order) that fits is planned this frame
+  (at least one face when it is the first map of the frame: nothing starves), the rest
+  in later frames. A face's cost is its share of the texels and passes plus its own
+  triangles (``set_work`` with per-face counts); the copy pass is charged to the chunk
+  that completes the map. The map counts as captured (valid, clean, ``captured``
+  transform, dynamic age) only when its last face is committed; progress is kept only
+  while the light's generation, rect and transform stay those of its first face (a
+  move, a new dirt or a new rect restarts it). Without a time budget, or when the
+  map fits, it is planned whole (``ShadowUpdate.faces`` None), as before.
 * Lights out of view are not dropped: their priority is scaled down (policy), so they
   are downgraded first and refreshed last.
 * A map remembers the transform it was captured with (``captured_transform``);
@@ -75,6 +87,10 @@ __all__ = ["SchedulerStats", "ShadowScheduler", "ShadowUpdate", "WaitStats", "sa
 _PRIORITY_FLOOR = 1.0e-12
 
 
+def _mask(faces: Iterable[int]) -> int:
+    return sum(1 << f for f in set(faces))
+
+
 def same_transform(a: object, b: object) -> bool:
     """Exact equality of two opaque transforms (numpy arrays compared elementwise)."""
     if a is b:
@@ -105,6 +121,14 @@ class ShadowUpdate:
     #: Texels, passes and triangles the capture renders (cost-model features).
     passes: int = field(default=1, repr=False, compare=False)
     triangles: float = field(default=0.0, repr=False, compare=False)
+    #: Faces rendered this frame (face order of ``shadows.capture.face_rotations``);
+    #: None: the whole map (every face, then the copy) -- the only case without a
+    #: time budget.
+    faces: tuple[int, ...] | None = None
+    #: First chunk of a split map (start a fresh depth target) ...
+    first: bool = True
+    #: ... and the chunk that completes it (copy into the atlas; the map is captured).
+    complete: bool = True
 
 
 @dataclass(frozen=True)
@@ -137,6 +161,7 @@ class SchedulerStats:
     oldest_pending: int  # frames the longest-waiting pending static has waited so far
     stale_maps: int  # lights whose map is not fresh (invalid, dirty, moved or unplaced)
     atlas: AtlasStats
+    partial_maps: int = 0  # split maps with some (not all) faces rendered
 
 
 @dataclass(slots=True)
@@ -161,6 +186,12 @@ class _Light:
     ticket: int = 0  # service order: lower = served (or added) longer ago
     retry_after: int = 0
     triangles: float = 0.0  # submitted per capture (after culling): cost-model feature
+    faces: int = 1  # capture faces the scheduler may split the map into (1: whole)
+    face_tris: np.ndarray | None = None  # (faces,) triangles per face (None: even)
+    part_mask: int = 0  # faces rendered of a split capture in progress (bit per face)
+    part_gen: int = -1  # gen, rect and transform that capture started with
+    part_rect: AtlasRect | None = None
+    part_transform: object = None
 
 
 class ShadowScheduler:
@@ -230,14 +261,19 @@ class ShadowScheduler:
         priority: float = 1.0,
         cost_factor: float = 1.0,
         passes: int = 1,
+        faces: int = 1,
     ) -> AtlasRect | None:
         """Register a shadowed light and place its map (dirty "added").
 
         ``cost_factor``: texels rendered per atlas texel (1 spot,
         ``SHADOW_OMNI_COST_FACTOR`` omni); ``passes``: render passes per capture
-        (the copy included: 2 spot, 7 omni), each charged ``pass_overhead_texels``.
+        (the copy included: 2 spot, 7 omni), each charged ``pass_overhead_texels``;
+        ``faces``: faces a capture may be split into under a time budget (6: an omni
+        cube rendered face by face, one pass each, then the copy; 1: never split).
         Returns the rect (None: no room yet).
         """
+        if faces < 1 or (faces > 1 and passes != faces + 1):
+            raise ValueError(f"a map split into {faces} faces renders faces + 1 passes")
         if key in self._lights:
             raise KeyError(f"shadow light {key!r} already added")
         light = _Light(
@@ -251,6 +287,7 @@ class ShadowScheduler:
             transform=transform,
             last_served=self._now - 1,
             ticket=self._next_ticket(),
+            faces=int(faces),
         )
         self._seq += 1
         self._lights[key] = light
@@ -309,9 +346,18 @@ class ShadowScheduler:
             self._dynamic.pop(key, None)
             self._dirty(light, "geometry")  # its map held dynamic geometry
 
-    def set_work(self, key: Hashable, triangles: float) -> None:
-        """Triangles one capture of ``key`` submits (after culling; cost-model feature)."""
-        self._lights[key].triangles = max(float(triangles), 0.0)
+    def set_work(self, key: Hashable, triangles: float | Sequence[float] | np.ndarray) -> None:
+        """Triangles one capture of ``key`` submits (after culling; cost-model feature):
+        a total, or one number per face (``faces`` of ``add_light``) -- what a split
+        capture's chunks are priced with (a total is shared evenly by the faces)."""
+        light = self._lights[key]
+        t = np.maximum(np.asarray(triangles, dtype=np.float64), 0.0)
+        if t.ndim == 0:
+            light.triangles, light.face_tris = float(t), None
+            return
+        if t.shape != (light.faces,):
+            raise ValueError(f"{key!r}: {t.shape[0]} per-face triangle counts, {light.faces} faces")
+        light.triangles, light.face_tris = float(t.sum()), t
 
     def mark_dirty(self, key: Hashable, reason: str) -> None:
         """Queue a re-capture (e.g. "geometry": static geometry in range changed)."""
@@ -375,6 +421,10 @@ class ShadowScheduler:
             and same_transform(light.captured, light.transform)
         )
 
+    def faces(self, key: Hashable) -> int:
+        """Faces ``key``'s capture may be split into (``add_light``)."""
+        return self._lights[key].faces
+
     def is_dynamic(self, key: Hashable) -> bool:
         return self._lights[key].dynamic
 
@@ -398,26 +448,32 @@ class ShadowScheduler:
         spent_ms = 0.0
         budget_ms = self.budget_ms
         i = 0
+        split = False  # a map was split: the frame is full
         if statics:  # starvation guard + static reserve
             reserve = self.static_reserve * self.budget_texels
             reserve_ms = None if budget_ms is None else self.static_reserve * budget_ms
-            while i < len(statics) and (
-                i == 0 or (spent < reserve and self._fits_ms(statics[i], spent_ms, reserve_ms))
-            ):
-                charge, ms = self._take(plan, statics[i], frame)
+            faces = self._faces_within(statics[0], 0.0, budget_ms, force=True)
+            while faces is not None:
+                charge, ms, split = self._take(plan, statics[i], frame, faces)
                 spent += charge
                 spent_ms += ms
                 i += 1
+                if split or i == len(statics) or spent >= reserve:
+                    break
+                faces = self._faces_within(statics[i], spent_ms, reserve_ms, whole=True)
         rest = statics[i:] + [lights[k] for k in self._dynamic if lights[k].rect is not None]
         rest.sort(key=lambda lt: (-self._urgency(lt, frame), lt.dynamic, lt.ticket))
-        for light in rest:
-            if plan and (
-                spent >= self.budget_texels or not self._fits_ms(light, spent_ms, budget_ms)
-            ):
+        for light in [] if split else rest:
+            if plan and spent >= self.budget_texels:
                 break
-            charge, ms = self._take(plan, light, frame)
+            faces = self._faces_within(light, spent_ms, budget_ms, force=not plan)
+            if faces is None:
+                break
+            charge, ms, split = self._take(plan, light, frame, faces)
             spent += charge
             spent_ms += ms
+            if split:
+                break
         self._planned = (len(plan), sum(u.cost for u in plan))  # texels, not charge
         self._planned_ms = spent_ms
         self._last_planned = frame
@@ -432,6 +488,18 @@ class ShadowScheduler:
             light = self._lights.get(u.key)
             if light is None or light.rect != u.rect:
                 continue  # removed or moved since planning: that capture is void
+            texels += u.cost
+            if not u.complete:  # faces of a split capture: progress, nothing captured
+                assert u.faces is not None
+                same = light.gen == u.gen and same_transform(light.transform, u.transform)
+                if same and (u.first or light.part_gen == u.gen):
+                    light.part_mask = (0 if u.first else light.part_mask) | _mask(u.faces)
+                    light.part_gen, light.part_rect = u.gen, u.rect
+                    light.part_transform = u.transform
+                else:
+                    light.part_mask = 0  # the light changed since planning: restart
+                continue
+            light.part_mask = 0
             if light.dynamic:
                 self._dynamic_age.append((u.frame, u.frame - light.last_served))
             light.captured = u.transform
@@ -440,7 +508,6 @@ class ShadowScheduler:
             light.last_served = u.frame
             light.ticket = self._next_ticket()
             n += 1
-            texels += u.cost
             if light.dirty_since is None:
                 continue
             if not light.dynamic:
@@ -480,6 +547,7 @@ class ShadowScheduler:
                 1 for lt in lights.values() if not lt.valid or lt.dirty_since is not None
             ),
             atlas=self.atlas.stats(),
+            partial_maps=sum(1 for lt in lights.values() if lt.part_mask),
         )
 
     # --- internals ----------------------------------------------------------------------
@@ -499,38 +567,89 @@ class ShadowScheduler:
         assert rect is not None
         return round(light.cost_factor * rect.size * rect.size)
 
-    def _cost_ms(self, light: _Light) -> float:
-        return self.cost_model.predict(self._texels(light), light.passes, light.triangles)
+    def _remaining(self, light: _Light) -> tuple[int, ...]:
+        """Faces still to render: those a split capture in progress lacks, or all of
+        them (progress is dropped once the light's gen, rect or transform changed)."""
+        if light.part_mask and not (
+            light.part_gen == light.gen
+            and light.part_rect == light.rect
+            and same_transform(light.part_transform, light.transform)
+        ):
+            light.part_mask = 0
+        return tuple(f for f in range(light.faces) if not light.part_mask >> f & 1)
 
-    def _fits_ms(self, light: _Light, spent_ms: float, limit: float | None) -> bool:
-        return limit is None or spent_ms + self._cost_ms(light) <= limit
+    def _work(self, light: _Light, faces: tuple[int, ...]) -> tuple[int, int, float, float]:
+        """Texels, passes, triangles and predicted ms of rendering ``faces`` of the map
+        (the copy pass included when they complete it)."""
+        if len(faces) == light.faces:  # the whole map
+            texels, passes, tris = self._texels(light), light.passes, light.triangles
+        else:
+            k, n = len(faces), light.faces
+            texels = round(self._texels(light) * k / n)
+            done = bin(light.part_mask).count("1")
+            passes = k + (1 if done + k == n else 0)  # one pass per face, then the copy
+            ft = light.face_tris
+            tris = light.triangles * k / n if ft is None else float(ft[list(faces)].sum())
+        return texels, passes, tris, self.cost_model.predict(texels, passes, tris)
 
-    def _take(self, plan: list[ShadowUpdate], light: _Light, frame: int) -> tuple[int, float]:
-        """Plan one capture; returns what it charges against the budgets: texels (its
-        texels plus the fixed per-pass overhead) and predicted milliseconds."""
+    def _faces_within(
+        self,
+        light: _Light,
+        spent_ms: float,
+        limit: float | None,
+        *,
+        force: bool = False,
+        whole: bool = False,
+    ) -> tuple[int, ...] | None:
+        """Faces of ``light`` to plan with ``spent_ms`` already planned: all remaining
+        ones if they fit ``limit`` (or there is no limit); else (unless ``whole``) the
+        longest run of them that fits; with ``force`` at least one face (the first map
+        of a frame). None: nothing fits."""
+        rem = self._remaining(light)
+        if limit is None or spent_ms + self._work(light, rem)[3] <= limit:
+            return rem
+        if light.faces == 1 or whole:
+            return rem if force else None
+        k = 0
+        while k + 1 < len(rem) and spent_ms + self._work(light, rem[: k + 1])[3] <= limit:
+            k += 1
+        if k == 0:
+            return rem[:1] if force else None
+        return rem[:k]
+
+    def _take(
+        self, plan: list[ShadowUpdate], light: _Light, frame: int, faces: tuple[int, ...]
+    ) -> tuple[int, float, bool]:
+        """Plan ``faces`` of one capture; returns what it charges against the budgets
+        (texels plus the fixed per-pass overhead, predicted milliseconds) and whether the
+        map stays incomplete (split)."""
         rect = light.rect
         assert rect is not None
-        cost = self._texels(light)
-        ms = self._cost_ms(light)
+        texels, passes, tris, ms = self._work(light, faces)
+        first = light.part_mask == 0
+        complete = bin(light.part_mask).count("1") + len(faces) == light.faces
         reason = "+".join(sorted(light.reasons)) if light.reasons else "refresh"
         plan.append(
             ShadowUpdate(
                 light.key,
                 rect,
                 reason,
-                cost,
+                texels,
                 light.transform,
                 light.dynamic,
                 frame,
                 light.gen,
                 ms,
-                light.passes,
-                light.triangles,
+                passes,
+                tris,
+                None if first and complete else faces,
+                first,
+                complete,
             )
         )
-        return cost + light.passes * self.pass_overhead_texels, ms
+        return texels + passes * self.pass_overhead_texels, ms, not complete
 
-    def _dirty(self, light: _Light, reason: str) -> None:
+    def _dirty(self, light: _Light, reason: str) -> None:  # (gen bump: split restarts)
         if light.dirty_since is None:
             light.dirty_since = self._now
         light.last_mark = self._now

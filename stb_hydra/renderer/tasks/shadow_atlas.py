@@ -135,6 +135,8 @@ class ShadowAtlasTask(Pass):
     def _forget(self, key: str) -> None:
         if key in self.scheduler:
             self.scheduler.remove_light(key)
+        if self.capturer is not None:
+            self.capturer.drop_partial(key)
         row = self._row_of.pop(key, None)
         self._captures.pop(key, None)
         s = self._slot_of.pop(key, None)
@@ -184,6 +186,8 @@ class ShadowAtlasTask(Pass):
         changed = shadowed[ver != self._seen_version[shadowed]]
         touched: list[str] = []
         omni_passes = self.capturer.omni_passes if self.capturer else limits.SHADOW_OMNI_PASSES
+        # per-face omni captures may be split into their faces (a time budget only)
+        omni_faces = 6 if omni_passes == limits.SHADOW_OMNI_PASSES else 1
         for r in changed.tolist():
             key = t.paths[r]
             if key is None:
@@ -200,6 +204,7 @@ class ShadowAtlasTask(Pass):
                     transform=c,
                     cost_factor=limits.SHADOW_OMNI_COST_FACTOR if c.omni else 1.0,
                     passes=omni_passes if c.omni else limits.SHADOW_SPOT_PASSES,
+                    faces=omni_faces if c.omni else 1,
                 )
                 self._row_of[key] = r
                 self._membership_changed = True
@@ -217,8 +222,9 @@ class ShadowAtlasTask(Pass):
         return changed
 
     def _update_work(self, keys: list[str]) -> None:
-        """Triangles each of ``keys``' captures submits after culling (cost model),
-        vectorised over the lights (``shadows.culling.triangles_submitted``)."""
+        """Triangles each of ``keys``' captures submits after culling, per face (cost
+        model; a split capture's chunks are priced with them), vectorised over the lights
+        (``shadows.culling.triangles_submitted``)."""
         if not keys:
             return
         arr = self.delegate.batch_arrays()
@@ -237,16 +243,18 @@ class ShadowAtlasTask(Pass):
             vps[i, 0] = spot_view_proj(caps[i])
             valid[i, 0] = True
         dyn = np.fromiter((self.scheduler.is_dynamic(k) for k in keys), dtype=bool, count=n)
-        tri_all = triangles_submitted(vps, valid, pos, rng, arr.lo, arr.hi, arr.triangles)
+        bounds = (arr.lo, arr.hi)
+        tri_all = triangles_submitted(vps, valid, pos, rng, *bounds, arr.triangles, per_face=True)
         static_tris = np.where(arr.dynamic, 0.0, arr.triangles)
         tri_static = (
-            triangles_submitted(vps, valid, pos, rng, arr.lo, arr.hi, static_tris)
+            triangles_submitted(vps, valid, pos, rng, *bounds, static_tris, per_face=True)
             if arr.dynamic.any()
             else tri_all
         )
-        tris = np.where(dyn, tri_all, tri_static)
-        for k, tr in zip(keys, tris.tolist()):
-            self.scheduler.set_work(k, tr)
+        tris = np.where(dyn[:, None], tri_all, tri_static)  # (n, 6)
+        sch = self.scheduler
+        for i, k in enumerate(keys):
+            sch.set_work(k, tris[i] if omni[i] and sch.faces(k) == 6 else float(tris[i].sum()))
 
     def _forget_gone(self, fidx: int, n_changed: int) -> None:
         """Forget lights that vanished, lost their shadows or stayed out of view."""
@@ -315,8 +323,8 @@ class ShadowAtlasTask(Pass):
                 self._slot_valid[s] = valid
             self._records_dirty = False
         for u in self._plan:
-            if u.rect is None or u.transform is None:
-                continue
+            if u.rect is None or u.transform is None or not u.complete:
+                continue  # (a split map's record changes with the chunk that completes it)
             # The scheduler keeps keys and transforms opaque: ours are paths and Captures.
             s = self._slot(cast(str, u.key))
             self._records[s] = capturer.record(cast(Capture, u.transform), u.rect)
@@ -360,7 +368,7 @@ class ShadowAtlasTask(Pass):
             if u.rect is None or u.transform is None:
                 continue
             key, c = cast(str, u.key), cast(Capture, u.transform)
-            w = self.capturer.capture(d, key, c, u.rect, u.dynamic)
+            w = self.capturer.capture(d, key, c, u.rect, u.dynamic, u.faces, u.first, u.complete)
             texels += w.texels
             passes += w.passes
             triangles += w.triangles
@@ -402,6 +410,7 @@ class ShadowAtlasTask(Pass):
                 "shadow_ms_planned": st.ms_planned,
                 "shadow_triangles": triangles,
                 "shadow_stale_maps": st.stale_maps,
+                "shadow_partial_maps": st.partial_maps,
             }
         )
 
