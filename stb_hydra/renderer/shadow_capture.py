@@ -214,17 +214,10 @@ class ShadowCapturer:
                 passes = limits.SHADOW_OMNI_PASSES
             texels = 6 * f * f
         else:
-            prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
             tex, fbo = self._temp(interior, interior)
             fbo.use()
             fbo.clear(depth=1.0)
-            ctx.viewport = (0, 0, interior, interior)
-            set_uniform(prog, "u_light_view_proj", vps[0])
-            for j in np.nonzero(vis[0])[0].tolist():
-                b = batches[j]
-                delegate.vertex_array(b, prog, depth_only=True).render(
-                    moderngl.TRIANGLES, instances=b.count
-                )
+            self._draw_faces(delegate, vis, vps, (0,), interior)  # face 0's cell: all of it
             texels = interior * interior
             passes = limits.SHADOW_SPOT_PASSES
         ctx.disable(moderngl.DEPTH_TEST)
