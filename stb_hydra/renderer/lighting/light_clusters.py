@@ -66,13 +66,16 @@ class LightClusters:
         return np.ascontiguousarray(np.concatenate([self.supers, self.clusters]))
 
 
-def _bounds(p: np.ndarray, r: np.ndarray, f: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    rec = np.empty((len(starts), 8), dtype=np.float64)
-    rec[:, 0:3] = np.minimum.reduceat(p, starts, axis=0)
-    rec[:, 3] = np.add.reduceat(f, starts)
-    rec[:, 4:7] = np.maximum.reduceat(p, starts, axis=0)
-    rec[:, 7] = np.maximum.reduceat(r, starts)
-    return rec
+def _merge(rec: np.ndarray, size: int) -> np.ndarray:
+    """Records (min xyz, flux, max xyz, range) of runs of ``size`` consecutive records:
+    the box around their boxes, their summed flux, their largest range."""
+    starts = np.arange(0, len(rec), size)
+    out = np.empty((len(starts), 8), dtype=np.float64)
+    out[:, 0:3] = np.minimum.reduceat(rec[:, 0:3], starts, axis=0)
+    out[:, 3] = np.add.reduceat(rec[:, 3], starts)
+    out[:, 4:7] = np.maximum.reduceat(rec[:, 4:7], starts, axis=0)
+    out[:, 7] = np.maximum.reduceat(rec[:, 7], starts)
+    return out
 
 
 def build_clusters(
@@ -91,14 +94,11 @@ def build_clusters(
     if n == 0:
         empty = np.zeros((0, 8), np.float32)
         return LightClusters(np.zeros(0, np.uint32), empty, empty)
-    p = np.asarray(positions, dtype=np.float64)[order]
-    r = np.asarray(ranges, dtype=np.float64)[order]
-    f = np.maximum(np.asarray(flux, dtype=np.float64)[order], 0.0)
-    cl = _bounds(p, r, f, np.arange(0, n, group))
-    sup = np.empty((-(-len(cl) // fanout), 8), dtype=np.float64)
-    starts = np.arange(0, len(cl), fanout)
-    sup[:, 0:3] = np.minimum.reduceat(cl[:, 0:3], starts, axis=0)
-    sup[:, 3] = np.add.reduceat(cl[:, 3], starts)
-    sup[:, 4:7] = np.maximum.reduceat(cl[:, 4:7], starts, axis=0)
-    sup[:, 7] = np.maximum.reduceat(cl[:, 7], starts)
+    # One record per light (a point box), then the two levels of merged runs.
+    lights = np.empty((n, 8), dtype=np.float64)
+    lights[:, 0:3] = lights[:, 4:7] = np.asarray(positions, dtype=np.float64)[order]
+    lights[:, 3] = np.maximum(np.asarray(flux, dtype=np.float64)[order], 0.0)
+    lights[:, 7] = np.asarray(ranges, dtype=np.float64)[order]
+    cl = _merge(lights, group)
+    sup = _merge(cl, fanout)
     return LightClusters(order.astype(np.uint32), cl.astype(np.float32), sup.astype(np.float32))

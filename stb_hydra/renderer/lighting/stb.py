@@ -61,6 +61,7 @@ from .base import LightingMethod, Warn, program
 from .light_clusters import LightClusters, build_clusters
 from .options import Opt, OptionError, Schema
 from .quad_patterns import QuadPatterns, fixed_pattern, pattern_bank
+from .tiled import SSBOPool
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
@@ -144,7 +145,7 @@ OPTIONS = Schema(
         "auto",
         choices=("auto", "stream", "clusters"),
         doc="big-tile candidates: every slot streams n/K lights (exact WRS), or draws from "
-        "light clusters (cost ~ n/32 + 32K per tile); auto: clusters above "
+        "a two-level light hierarchy (cost ~ n/256 + 32K per tile); auto: clusters above "
         "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights",
     ),
 )
@@ -179,7 +180,7 @@ class StbLighting(LightingMethod):
         # Light clusters (bigtile=clusters): built for (table version, FoV rows).
         self._clusters: LightClusters | None = None
         self._clusters_key: tuple[int, bytes] | None = None
-        self._cluster_buffers: dict[str, moderngl.Buffer] = {}
+        self._cluster_buffers: SSBOPool | None = None
 
     def internal(self) -> tuple[Tex, ...]:
         return (
@@ -379,21 +380,15 @@ class StbLighting(LightingMethod):
             frame.stats["stb_clusters_rebuilt"] = 1
             self._clusters = build_clusters(t.position[rows], t.range[rows], t.flux[rows])
             self._clusters_key = key
-            light_records = pack_lights(t, rows[self._clusters.order])  # Morton order
-            arrays = (
-                ("records", self._clusters.records()),
-                ("order", self._clusters.order),
-                ("lights", light_records),
+            if self._cluster_buffers is None:
+                self._cluster_buffers = SSBOPool(frame.ctx)
+            pool = self._cluster_buffers
+            pool.upload("records", self._clusters.records(), SSBO_STB_CLUSTERS)
+            pool.upload("order", self._clusters.order, SSBO_STB_CLUSTER_LIGHTS)
+            # The lights' own records in Morton order: a cluster reads one contiguous run.
+            pool.upload(
+                "lights", pack_lights(t, rows[self._clusters.order]), SSBO_STB_CLUSTER_RECORDS
             )
-            for name, arr in arrays:
-                data = np.ascontiguousarray(arr).tobytes() or bytes(16)
-                buf = self._cluster_buffers.get(name)
-                if buf is None or buf.size < len(data):
-                    if buf is not None:
-                        buf.release()
-                    buf = frame.ctx.buffer(reserve=max(len(data), 16))
-                    self._cluster_buffers[name] = buf
-                buf.write(data)
         return self._clusters
 
     def _bigtile_clusters(
@@ -418,9 +413,10 @@ class StbLighting(LightingMethod):
             set_uniform(cs, "u_supers", len(cl.supers))
             self.bind_common(frame, cs)  # type: ignore[arg-type]  # same uniforms and buffers
             hiz.use(TEX_UNIT_HIZ)
-            self._cluster_buffers["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
-            self._cluster_buffers["order"].bind_to_storage_buffer(SSBO_STB_CLUSTER_LIGHTS)
-            self._cluster_buffers["lights"].bind_to_storage_buffer(SSBO_STB_CLUSTER_RECORDS)
+            bufs = cast(SSBOPool, self._cluster_buffers).buffers  # built by light_clusters
+            bufs["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
+            bufs["order"].bind_to_storage_buffer(SSBO_STB_CLUSTER_LIGHTS)
+            bufs["lights"].bind_to_storage_buffer(SSBO_STB_CLUSTER_RECORDS)
             big.bind_to_image(IMAGE_UNIT_BIGTILE, read=False, write=True)
             cs.run(tiles[0], tiles[1], 1)
             frame.ctx.memory_barrier()
@@ -439,9 +435,8 @@ class StbLighting(LightingMethod):
             draw_fullscreen(frame.ctx, prog, fbo, size)
 
     def release(self) -> None:
-        for buf in self._cluster_buffers.values():
-            buf.release()
-        self._cluster_buffers.clear()
+        if self._cluster_buffers is not None:
+            self._cluster_buffers.release()
         self._clusters = None
         if self._luts is not None:
             for t in self._luts:
