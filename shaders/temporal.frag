@@ -8,7 +8,9 @@
 //    agree, bilinear over the agreeing texels where some do, no history otherwise
 //    (the normal test only rejects opposite sides, e.g. of a thin wall: at a crease
 //    the jitter moves the pixel between faces at one depth, and a stricter test
-//    dropped ~5 % of a still courtyard's pixels every frame);
+//    dropped ~5 % of a still courtyard's pixels every frame); where nothing of the
+//    footprint matches but the texel's old surface is still beside the pixel (an edge
+//    the jitter crosses), the history of a 3x3 texel that saw this surface is borrowed;
 //  * history rejection on noisy input: variance clipping of the history against a
 //    depth-weighted 13-tap neighbourhood (3x3 + 4 taps at distance 2) of lighting
 //    demodulated by albedo (the statistics of a spatially pre-filtered signal, not
@@ -158,15 +160,18 @@ void main() {
         } else {
             vec3 gn = oct_decode(g.yz);
             same = g.x > 0.0 && abs(g.x - prev_d) <= tol && dot(gn, n) > -0.5;
-            // Else: is it a surface of this 3x3 neighbourhood (depth and normal),
-            // seen through another jitter offset at an edge? Not a disocclusion.
+            // Else: is it a surface of this 3x3 neighbourhood (depth, facing the same
+            // half-space), seen through another jitter offset at an edge? Not a
+            // disocclusion. (A normal test of 0.9 reset the pixels of curved rims,
+            // whose normal turns by more than that between neighbours, every time
+            // the jitter moved them on or off the rim.)
             // (Fetched here, not kept from the statistics loop: only edge pixels
             // get this far, and arrays indexed in loops are slow on llvmpipe.)
             for (int j = 1; j < 9 && !same && g.x > 0.0; ++j) {
                 ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
                 float dj = texelFetch(u_depth, q, 0).r;
                 same = dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4
-                       && dot(gn, oct_decode(texelFetch(u_normal, q, 0).xy)) > 0.9;
+                       && dot(gn, oct_decode(texelFetch(u_normal, q, 0).xy)) > 0.0;
             }
         }
         if (!same) continue;
@@ -178,6 +183,47 @@ void main() {
         valid_w += w;
         valid_n += 1;
         hist_len += w * h.a;
+    }
+
+    // History borrowing: nothing of the footprint is this surface, but what this
+    // texel saw last frame is still beside the pixel: an edge the jitter moves across
+    // (a 1 px post, a silhouette against the sky, a curved rim), not a disocclusion
+    // (floor uncovered by a moving box: the box is gone from the neighbourhood). Take
+    // the history of the 3x3 texel around the reprojected position that saw this
+    // surface last frame (nearest depth, same side), instead of starting again from
+    // one frame's noise. Only such pixels pay for the search.
+    ivec2 c0 = ivec2(floor(pos));
+    bool edge = false;  // the surface this texel saw last frame is still beside this pixel
+    if (valid_n == 0 && u_reset < 0.5 && all(greaterThanEqual(c0, ivec2(0))) && all(lessThan(c0, size))) {
+        float g0 = texelFetch(u_prev_geo, c0, 0).x;
+        for (int j = 1; j < 9 && !edge; ++j) {
+            float dj = texelFetch(u_depth, clamp(ip + TAPS[j], ivec2(0), size - 1), 0).r;
+            edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
+        }
+    }
+    if (edge) {
+        float best = 1e30;
+        for (int j = 1; j < 9; ++j) {
+            ivec2 t = c0 + TAPS[j];
+            if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+            vec4 g = texelFetch(u_prev_geo, t, 0);
+            float err;
+            if (d <= 0.0) {
+                if (g.x > 0.0) continue;
+                err = 0.0;
+            } else {
+                err = abs(g.x - prev_d);
+                if (!(g.x > 0.0) || err > 0.05 * prev_d + 1e-4 || dot(oct_decode(g.yz), n) < 0.5) continue;
+            }
+            if (err >= best) continue;
+            best = err;
+            vec4 h = texelFetch(u_history, t, 0);
+            bil = h.rgb;
+            mom2 = g.w;
+            hist_len = h.a;
+            valid_w = 1.0;
+            valid_n = 1;
+        }
     }
 
     // History fix: a pixel with a short history (disoccluded, or capped by a light
