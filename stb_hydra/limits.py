@@ -114,7 +114,9 @@ BIG_TILE_SLOTS_DEFAULT = 64
 BIG_TILE_SLOTS_ALLOWED = (4, 8, 16, 32, 64)
 #: Small-tile samples N: one RGBA32UI texel holds at most 4. Default 1 (the talk's fixed
 #: cost); `-o N=4 -o select=pixel` (each pixel evaluates one of the 4) is the
-#: decorrelated alternative measured in docs/STB_NOTES.md (issue 13).
+#: decorrelated alternative and `-o N=4 -o select=ris` (each pixel resamples the 4 by a
+#: cheap target and shades one) the lower-noise one, measured in docs/STB_NOTES.md
+#: (issue 13).
 SMALL_TILE_SAMPLES_MAX = 4
 SMALL_TILE_SAMPLES_DEFAULT = 1
 #: Light clusters of the big-tile pass for many lights (issue 16, ``-o bigtile``):

@@ -18,7 +18,10 @@ power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
 ``interleave``, ``stochastic_bilinear``, ``target`` ("segment" | "uniform"),
 ``pdf_floor`` (defensive mixture weight of the small-tile target, see below),
 ``shadow_res`` ("quad": one term per 2x2 quad, the talk's; "pixel": full
-resolution, exact at shadow/cone edges at ~4x the shadow-pass cost).
+resolution, exact at shadow/cone edges at ~4x the shadow-pass cost), ``select``
+("all": every pixel shades its tile's N samples, the talk's; "quad"/"pixel": one of N
+independent picks per quad/pixel; "ris": each pixel resamples the N picks by a cheap
+target x the quad's term and shades one -- see docs/STB_NOTES.md, fourth pass).
 
 Where we differ from the talk (see docs/STB_NOTES.md): the small-tile target is
 a defensive mixture ``p_hat + pdf_floor x mean(p_hat over the K candidates)``,
