@@ -70,12 +70,13 @@ void main() {
 #ifdef STB_RIS_SELECT
     // Per-pixel resampling of the tile's N independent samples (each a complete
     // estimate with weight W_j): pick j with probability ~ p_j W_j, where p_j is a cheap
-    // unshadowed target at this pixel x (floor + (1 - floor) x the quad's term) plus a
-    // defensive share of the mean, and shade only that one with weight sum(p W) / (N p_j)
-    // -- resampled importance sampling, unbiased while p_j > 0 wherever the sample can
-    // contribute (ris_target and the floor keep it positive there, whatever the term of
-    // this pixel is). When p_j ~ the shaded value this is the N-sample mean for the cost
-    // of one shade (plus the N terms of the term pass and N cheap targets here).
+    // unshadowed target at this pixel x the sample's term (the one this pixel is shaded
+    // with) plus a defensive share of the mean, and shade only that one with weight
+    // sum(p W) / (N p_j) -- resampled importance sampling, unbiased while p_j > 0
+    // wherever the sample can contribute (ris_target keeps it positive wherever the
+    // light reaches the pixel; a zero term means a zero contribution). When p_j ~ the
+    // shaded value this is the N-sample mean for the cost of one shade (plus the N terms
+    // of the term pass and N cheap targets here).
     vec4 pix_terms = terms;
 #if !defined(STB_UNIT_TERMS) && !defined(STB_PIXEL_TERMS)
     if (split != 0u) {
@@ -92,8 +93,7 @@ void main() {
         uint lj = sample_index(smp[j]);
         rp[j] = 0.0;
         if (lj == LIM_EMPTY_LIGHT_INDEX || !(sample_weight(smp[j]) > 0.0)) continue;
-        rp[j] = ris_target(lights[lj], s)
-            * (LIM_RIS_TERM_FLOOR + (1.0 - LIM_RIS_TERM_FLOOR) * pix_terms[j]);
+        rp[j] = ris_target(lights[lj], s) * pix_terms[j];
         rp_sum += rp[j];
     }
     float rw_sum = 0.0;
