@@ -62,7 +62,7 @@ vec3 albedo_at(ivec2 px) {
 }
 
 vec3 history_bilinear_at(vec2 uv) {
-    return texture(u_history, uv).rgb;
+    return textureLod(u_history, uv, 0.0).rgb;
 }
 
 // Catmull-Rom through 5 bilinear taps (the 4 corner taps' weights are dropped).
