@@ -25,16 +25,13 @@
 // reads lighting / albedo + depth from one texture written by temporal_demod.frag
 // (one fetch a tap instead of four), and the edge test fetches each neighbour's
 // depth and normal once for all 4 footprint texels.
-#include "common/demodulation.glsl"
 #include "common/frame.glsl"
 #include "common/packing.glsl"
 
-uniform sampler2D u_current;   // lighting (scene-linear, this frame, jittered raster)
 uniform sampler2D u_demod;     // lighting / albedo (rgb), linear depth (m) (temporal_demod.frag)
+uniform sampler2D u_albedo;    // demodulation albedo (rgb), lighting alpha (temporal_demod.frag)
 uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
-uniform sampler2D u_base;      // g_base_rough
-uniform sampler2D u_f0;        // g_f0_metal
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
 uniform mat4 u_prev_view;      // previous world -> view
@@ -55,10 +52,6 @@ layout(location = 2) out vec4 o_geo;
 
 float luma(vec3 c) {
     return dot(c, LUMINANCE_REC709);
-}
-
-vec3 albedo_at(ivec2 px) {
-    return demod_albedo(texelFetch(u_base, px, 0), texelFetch(u_f0, px, 0));
 }
 
 vec3 history_bilinear_at(vec2 uv) {
@@ -259,6 +252,7 @@ void main() {
     float tm2;
     vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
     o_history = hist;
-    o_color = vec4(hist.rgb * albedo_at(ip), texelFetch(u_current, ip, 0).a);
+    vec4 alb = texelFetch(u_albedo, ip, 0);
+    o_color = vec4(hist.rgb * alb.rgb, alb.a);
     o_geo = vec4(d, enc, tm2);
 }

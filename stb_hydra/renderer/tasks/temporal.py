@@ -42,8 +42,10 @@ HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
-#: Lighting / albedo + linear depth of this frame (``temporal_demod.frag``).
+#: Lighting / albedo + linear depth; albedo + lighting alpha of this frame
+#: (``temporal_demod.frag``).
 DEMOD = "taa_demod"
+ALBEDO = "taa_albedo"
 
 #: History length cap (frames) of a moving / a still pixel (its surface moved by
 #: less than half a pixel): the noise falls like a 1/n average up to this many
@@ -172,6 +174,7 @@ class TemporalTask(Pass):
         Rec(SceneColor),
         Tex(OUTPUT, "rgba16f"),
         Tex(DEMOD, "rgba32f"),
+        Tex(ALBEDO, "rgba32f"),
         *(Tex(n, "rgba32f") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in GEOMETRY),
     )
@@ -248,15 +251,13 @@ class TemporalTask(Pass):
         for unit, (uniform, name) in enumerate(demod_units):
             tex[name].use(unit)
             set_uniform(demod, uniform, unit)
-        draw_fullscreen(ctx, demod, bufs.framebuffer("fb_taa_demod", [DEMOD]), bufs.size)
+        draw_fullscreen(ctx, demod, bufs.framebuffer("fb_taa_demod", [DEMOD, ALBEDO]), bufs.size)
         prog = lib.program("fullscreen.vert", "temporal.frag")
         units = (
-            ("u_current", "lighting"),
             ("u_demod", DEMOD),
+            ("u_albedo", ALBEDO),
             ("u_normal", "g_normal"),
             ("u_motion", "g_motion"),
-            ("u_base", "g_base_rough"),
-            ("u_f0", "g_f0_metal"),
             ("u_history", h_src),
             ("u_prev_geo", g_src),
         )
