@@ -1,4 +1,5 @@
-// Temporal reuse for a moving camera (--temporal taa), one full-screen pass:
+// Temporal reuse for a moving camera (--temporal taa), the main full-screen pass
+// (after temporal_demod.frag):
 //  * reprojection: the previous position of the surface under this pixel from the
 //    G-buffer's motion vectors (camera motion and animated transforms) minus this
 //    frame's subpixel jitter (history lives on the unjittered pixel grid);
@@ -23,8 +24,9 @@
 // (disocclusion: same_surface, neighbour_surface), history_catmull_rom,
 // clip_towards_mean, blend. Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
 // reads lighting / albedo + depth from one texture written by temporal_demod.frag
-// (one fetch a tap instead of four), and the edge test fetches each neighbour's
-// depth and normal once for all 4 footprint texels.
+// (one fetch a tap instead of four), the remodulation its albedo + alpha texture,
+// and the edge test fetches each neighbour's depth and normal once for all 4
+// footprint texels.
 #include "common/frame.glsl"
 #include "common/packing.glsl"
 
