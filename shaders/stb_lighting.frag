@@ -21,6 +21,29 @@ uniform sampler2D u_pixel_terms;
 
 layout(location = 0) out vec4 o_color;
 
+#ifdef STB_RIS_SELECT
+#include "common/rng.glsl"
+uniform float u_eps;  // as the small-tile target's: keeps the target positive in shadow
+// Cheap per-pixel resampling target of a light at surface s (luminance, unshadowed,
+// without the term's cone/IES part): the small tile's target at one point -- area
+// irradiance x diffuse + Blinn-Phong specular from the centre, + eps x the facing
+// illuminance so it stays > 0 wherever the light reaches the pixel.
+float ris_target(Light L, Surface s) {
+    vec3 Ldir; float dist;
+    float f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return 0.0;
+    float Ev = luminance(L.intensity.rgb * light_shape_rgb(L, -Ldir)) * f;
+    float Ea = light_target_irradiance(L, s.P, s.N, Ldir, dist, Ev);
+    float kd = luminance(s.diffuse), ks = luminance(s.f0);
+    float a = max(s.alpha, LIM_GGX_ALPHA_MIN);
+    float spec_n = max(2.0 / (a * a) - 2.0, 1.0);
+    float NoL = max(dot(s.N, Ldir), 0.0);
+    float NoH = max(dot(s.N, normalize(s.V + Ldir)), 0.0);
+    float spec = ks * (spec_n + 2.0) / (2.0 * PI) * pow(NoH, spec_n);
+    return kd / PI * Ea + Ev * spec * NoL + Ev * (kd / PI + spec) * u_eps;
+}
+#endif
+
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
@@ -44,6 +67,61 @@ void main() {
     vec4 terms = texelFetch(u_terms, tt, 0);
     split = texelFetch(u_term_split, tt, 0).r;
 #endif
+#ifdef STB_RIS_SELECT
+    // Per-pixel resampling of the tile's N independent samples (each a complete
+    // estimate with weight W_j): pick j with probability ~ p_j W_j, where p_j is a cheap
+    // unshadowed target at this pixel x (floor + (1 - floor) x the quad's term) plus a
+    // defensive share of the mean, and shade only that one with weight sum(p W) / (N p_j)
+    // -- resampled importance sampling, unbiased while p_j > 0 wherever the sample can
+    // contribute (ris_target and the floor keep it positive there, whatever the term of
+    // this pixel is). When p_j ~ the shaded value this is the N-sample mean for the cost
+    // of one shade (plus the N terms of the term pass and N cheap targets here).
+    vec4 pix_terms = terms;
+#if !defined(STB_UNIT_TERMS) && !defined(STB_PIXEL_TERMS)
+    if (split != 0u) {
+        vec4 own_terms = texelFetch(u_pixel_terms, px, 0);
+        for (int j = 0; j < STB_N; ++j) {
+            if ((split & (1u << uint(j))) != 0u) pix_terms[j] = own_terms[j];
+        }
+    }
+#endif
+    float rw[STB_N];
+    float rp[STB_N];
+    float rp_sum = 0.0;
+    for (int j = 0; j < STB_N; ++j) {
+        uint lj = sample_index(smp[j]);
+        rp[j] = 0.0;
+        if (lj == LIM_EMPTY_LIGHT_INDEX || !(sample_weight(smp[j]) > 0.0)) continue;
+        rp[j] = ris_target(lights[lj], s)
+            * (LIM_RIS_TERM_FLOOR + (1.0 - LIM_RIS_TERM_FLOOR) * pix_terms[j]);
+        rp_sum += rp[j];
+    }
+    float rw_sum = 0.0;
+    for (int j = 0; j < STB_N; ++j) {
+        float Wj = sample_weight(smp[j]);
+        rw[j] = 0.0;
+        if (!(rp[j] > 0.0)) continue;  // no target: the light cannot reach this pixel
+        rw[j] = (rp[j] + LIM_RIS_PDF_FLOOR * rp_sum / float(STB_N)) * Wj;
+        rw_sum += rw[j];
+    }
+    int j0 = STB_N;  // nothing to shade unless a sample has a positive weight
+    float ris_scale = 0.0;
+    if (rw_sum > 0.0) {
+        Rng prng = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x70000000u, u_counts.y);
+        float u = rng_float(prng) * rw_sum;
+        float acc = 0.0;
+        for (int j = 0; j < STB_N; ++j) {
+            if (rw[j] <= 0.0) continue;
+            j0 = j;  // the last positive one absorbs rounding at the top
+            acc += rw[j];
+            if (u < acc) break;
+        }
+        // Shaded below with weight W_j0 x term; the RIS weight replaces W_j0 by
+        // sum(p W) / (N p_j0) = W_j0 x sum / (N rw_j0).
+        ris_scale = rw_sum / (float(STB_N) * rw[j0]);
+    }
+    int j1 = min(j0 + 1, STB_N);
+#else
     // Samples j0 .. j1 - 1: all N, or the one this quad/pixel selects (a loop of one
     // iteration, not N with a divergent skip: SIMD lanes would run all N).
 #if defined(STB_QUAD_SELECT)
@@ -58,6 +136,7 @@ void main() {
 #else
     int j1 = STB_N;
 #endif
+#endif  // STB_RIS_SELECT
     for (int j = j0; j < j1; ++j) {
         uint li = sample_index(smp[j]);
         float W = sample_weight(smp[j]);
@@ -71,6 +150,9 @@ void main() {
         if (own) term = texelFetch(u_pixel_terms, px, 0)[j];
 #endif
         if (term <= 0.0) continue;
+#ifdef STB_RIS_SELECT
+        W *= ris_scale;
+#endif
         c += (d * L.misc.z + sp * L.misc.w) * term * W;
     }
     c += emission;

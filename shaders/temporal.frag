@@ -9,7 +9,9 @@
 //    agree, bilinear over the agreeing texels where some do, no history otherwise
 //    (the normal test only rejects opposite sides, e.g. of a thin wall: at a crease
 //    the jitter moves the pixel between faces at one depth, and a stricter test
-//    dropped ~5 % of a still courtyard's pixels every frame);
+//    dropped ~5 % of a still courtyard's pixels every frame); where nothing of the
+//    footprint matches but the texel's old surface is still beside the pixel (an edge
+//    the jitter crosses), a 3x3 texel that saw this surface lends its history;
 //  * history rejection on noisy input: variance clipping of the history against a
 //    depth-weighted 13-tap neighbourhood (3x3 + 4 taps at distance 2) of lighting
 //    demodulated by albedo (the statistics of a spatially pre-filtered signal, not
@@ -161,10 +163,12 @@ bool same_surface(vec4 g, vec3 gn, float d, vec3 n, float prev_d) {
 }
 
 // Else: is it the surface of a 3x3 neighbour (depth dj moved like this pixel's by
-// `shift`, normal nj), seen through another jitter offset at an edge? Not a
-// disocclusion.
+// `shift`, facing the same half-space as nj), seen through another jitter offset at
+// an edge? Not a disocclusion. (A normal test of 0.9 reset the pixels of curved rims,
+// whose normal turns by more than that between neighbours, every time the jitter
+// moved them on or off the rim.)
 bool neighbour_surface(vec4 g, vec3 gn, float dj, vec3 nj, float shift) {
-    return dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4 && dot(gn, nj) > 0.9;
+    return dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4 && dot(gn, nj) > 0.0;
 }
 
 // Disocclusion over the 4 texels of the bilinear footprint and the bilinear sums of
@@ -214,6 +218,47 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
     return fp;
 }
 
+// History borrowing: nothing of the footprint is this surface, but what the texel
+// under the pixel saw last frame is still beside it -- an edge the jitter moves
+// across (a 1 px post, a silhouette against the sky, a curved rim), not a
+// disocclusion (floor uncovered by a moving box: the box is gone from the
+// neighbourhood). Then the history of the 3x3 texel around the reprojected position
+// that saw this surface last frame (nearest depth, same side) stands in, instead of
+// starting again from one frame's noise. Only such pixels pay for the search.
+Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0);
+    ivec2 c0 = ivec2(floor(r.pos));
+    if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
+    float g0 = texelFetch(u_prev_geo, c0, 0).x;
+    float shift = r.prev_d - d;
+    bool edge = false;
+    for (int j = 1; j < 9 && !edge; ++j) {
+        float dj = texelFetch(u_demod, clamp(ip + TAPS[j], ivec2(0), size - 1), 0).a;
+        edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
+    }
+    if (!edge) return fp;
+    float best = 1e30;
+    for (int j = 1; j < 9; ++j) {
+        ivec2 t = c0 + TAPS[j];
+        if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+        vec4 g = texelFetch(u_prev_geo, t, 0);
+        float err = 0.0;
+        if (d <= 0.0) {
+            if (g.x > 0.0) continue;
+        } else {
+            err = abs(g.x - r.prev_d);
+            if (!(g.x > 0.0) || err > 0.05 * r.prev_d + 1e-4 || dot(oct_decode(g.yz), n) < 0.5) {
+                continue;
+            }
+        }
+        if (err >= best) continue;
+        best = err;
+        vec4 h = texelFetch(u_history, t, 0);
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1);
+    }
+    return fp;
+}
+
 // History fix: a pixel with a short history (disoccluded, or capped by a light
 // change) takes the neighbourhood mean instead of its own noisy sample for its
 // first frames (full weight at n = 1, none from n = 5 on). Returns the demodulated
@@ -250,7 +295,9 @@ void main() {
     vec3 m1, sigma;
     neighbourhood_stats(ip, size, d, m1, sigma);
     Reprojection r = reproject(ip, d);
-    Footprint fp = footprint_history(ip, size, d, oct_decode(enc), r);
+    vec3 n = oct_decode(enc);
+    Footprint fp = footprint_history(ip, size, d, n, r);
+    if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
     float tm2;
     vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
     o_history = hist;

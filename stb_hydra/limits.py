@@ -359,6 +359,14 @@ LIGHTTREE_MAX_NODES = 16 * 1024 * 1024
 #: 7000x fireflies); those quads get per-pixel terms. 0.05 split 8 % of the quads of a
 #: 500-light scene at 745x360 for no visible gain and cost ~1.3x in the term pass.
 STB_TERM_SHARE_REL_DISTANCE = 0.15
+#: Per-pixel resampling (``-o select=ris``): the target of each of the tile's N samples at
+#: the pixel is the unshadowed target x (RIS_TERM_FLOOR + (1 - RIS_TERM_FLOOR) x term).
+#: The quad's term guides the pick (0: fully -- the most variance removed, but a quad's 4
+#: pixels then pick alike and keep its 2x2 structure); the floor keeps the target > 0
+#: where the quad's term is 0 but this pixel's may not be. Measured in docs/STB_NOTES.md.
+STB_RIS_TERM_FLOOR = 0.2
+#: ... and a defensive mixture like the small tile's: + RIS_PDF_FLOOR x the mean target.
+STB_RIS_PDF_FLOOR = 0.25
 
 # --- STB big-tile target ("shaped") --------------------------------------------------
 

@@ -182,11 +182,19 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
 
 @pytest.mark.parametrize(
     "select,bigtile",
-    [("all", "stream"), ("quad", "stream"), ("pixel", "stream"), ("all", "clusters")],
+    [
+        ("all", "stream"),
+        ("quad", "stream"),
+        ("pixel", "stream"),
+        ("ris", "stream"),
+        ("all", "clusters"),
+    ],
 )
 def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile):
     """Weight cap off: the mean of M STB frames -> reference, error ~ 1/M; with all N
-    samples per pixel and with quad selection (one of the N per quad); big-tile
+    samples per pixel, with quad/pixel selection (one of the N per quad/pixel) and with
+    per-pixel resampling of the N (ris: its target, an unshadowed approximation times
+    the term, may be off anywhere -- that must change the noise, not the mean); big-tile
     candidates streamed or drawn from light clusters (issue 16).
     relMSE with epsilon 1e-2 (scene-linear values here are ~1..100)."""
     stage = usda_stage(lights_scene(200))
@@ -335,7 +343,8 @@ def test_no_nan_or_inf_at_any_setting(gl_ctx):
         img = stb_hydra.render(stage, width=96, height=54, lighting="stb", **opts)
         assert np.isfinite(img).all(), opts
         assert img.min() >= 0 and img.max() <= limits.HALF_MAX, opts
-    for K, N, cap, select in itertools.product((4, 64), (1, 4), (None, 8.0), ("quad", "pixel")):
+    selects = ("quad", "pixel", "ris")
+    for K, N, cap, select in itertools.product((4, 64), (1, 4), (None, 8.0), selects):
         opts = dict(K=K, N=N, weight_cap=cap, select=select)
         img = stb_hydra.render(stage, width=96, height=54, lighting="stb", **opts)
         assert np.isfinite(img).all(), opts

@@ -26,8 +26,9 @@ from stb_hydra.scenegen.orbit import orbit_camera
 pytestmark = pytest.mark.usefixtures("gl_ctx")
 
 
-def _sequence(stage, frames, lighting, temporal, w, h, times=None, aovs=()):
-    eng = Engine(stage, RenderSettings(width=w, height=h, lighting=lighting, temporal=temporal))
+def _sequence(stage, frames, lighting, temporal, w, h, times=None, aovs=(), seed=0):
+    settings = RenderSettings(width=w, height=h, lighting=lighting, temporal=temporal, seed=seed)
+    eng = Engine(stage, settings)
     out, extra = [], []
     try:
         eng.request_aovs(set(aovs))
@@ -177,6 +178,9 @@ def _box_track(frames: int, moving: bool = True) -> str:
     )
 
 
+SLIDE_SEEDS = (0, 1, 2)
+
+
 def test_sliding_box_leaves_no_trail():
     """A box slides away over a lit floor (still camera, taa): the error in the floor
     it uncovered is back to the still level within 8 frames of the uncovering. The
@@ -199,15 +203,21 @@ def test_sliding_box_leaves_no_trail():
     finally:
         eng.release()
     refs = np.repeat(settled[None], frames, axis=0)
-    moving, _ = _sequence(stage, frames, "stb", "taa", w, h, times)
-    still, _ = _sequence(
-        _lit_floor(_box_track(frames, moving=False)), frames, "stb", "taa", w, h, times
-    )
-    err = region_error(moving, refs, uncovered)
-    level = 1.5 * float(np.median(region_error(still, refs, uncovered)[13:]))
+    # The region's error in one sequence is a noisy curve (a few hundred pixels): with
+    # one seed, whether it stays under the level from frame 8 on depended on the seed
+    # (settled after 0, 7 or 10 frames for seeds 2, 0, 1 with the same shader), so the
+    # curves are averaged over three seeds.
+    still_stage = _lit_floor(_box_track(frames, moving=False))
+    err, still_err = np.zeros(frames), np.zeros(frames)
+    for seed in SLIDE_SEEDS:
+        moving, _ = _sequence(stage, frames, "stb", "taa", w, h, times, seed=seed)
+        still, _ = _sequence(still_stage, frames, "stb", "taa", w, h, times, seed=seed)
+        err += region_error(moving, refs, uncovered) / len(SLIDE_SEEDS)
+        still_err += region_error(still, refs, uncovered) / len(SLIDE_SEEDS)
+    level = 1.5 * float(np.median(still_err[13:]))
     # Frame index 13 (time 14): the box has left the whole region.
     settle = frames_to_settle(err[13:], level)
-    assert settle <= 8, (settle, err[13:].round(2).tolist(), level)
+    assert settle <= 8, (settle, err[13:].round(3).tolist(), level)
 
 
 def test_halton_jitter_and_camera_cut():

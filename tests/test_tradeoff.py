@@ -206,12 +206,14 @@ def test_cli_moving_camera_scenario(tmp_path):
         "stb N1 taa",
         "stb N4 off",
         "stb N4 taa",
+        "stb N4 ris off",
+        "stb N4 ris taa",
         "tiled",
     ]
     assert float(by["reference"]["hdr_flip_median"]) == 0.0
     assert float(by["reference"]["instability"]) == pytest.approx(1.0)
     assert float(by["tiled"]["hdr_flip_median"]) < 1e-3  # exact, frame by frame
-    for n in ("1", "4"):
+    for n in ("1", "4", "4 ris"):
         raw, taa = by[f"stb N{n} off"], by[f"stb N{n} taa"]
         assert float(raw["hdr_flip_median"]) > 0.0
         assert float(taa["hdr_flip_median"]) < float(raw["hdr_flip_median"])

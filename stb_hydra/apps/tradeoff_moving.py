@@ -34,6 +34,8 @@ MOVING_CONFIGS: tuple[tuple[str, str, dict], ...] = (
     ("stb", "taa", {"N": 1}),
     ("stb", "off", {"N": 4}),
     ("stb", "taa", {"N": 4}),
+    ("stb", "off", {"N": 4, "select": "ris"}),
+    ("stb", "taa", {"N": 4, "select": "ris"}),
     ("tiled", "off", {}),
     ("clustered", "off", {}),
     ("lighttree", "off", {}),
@@ -44,6 +46,7 @@ MOVING_FIELDS = [
     "method",
     "temporal",
     "N",
+    "select",
     "frame_ms",
     "temporal_ms",
     "hdr_flip_median",
@@ -72,7 +75,9 @@ class Sequence:
     def label(self) -> str:
         if self.method != "stb":
             return self.method
-        return f"stb N{self.options.get('N', 1)} {self.temporal}"
+        select = self.options.get("select", "all")
+        sel = "" if select == "all" else f" {select}"
+        return f"stb N{self.options.get('N', 1)}{sel} {self.temporal}"
 
 
 def render_sequence(
@@ -136,6 +141,7 @@ def evaluate_sequence(seq: Sequence, ref: Sequence, skip: int) -> dict:
         "method": seq.method,
         "temporal": seq.temporal,
         "N": seq.options.get("N", ""),
+        "select": seq.options.get("select", "all") if seq.method == "stb" else "",
         "frame_ms": round(float(np.median(seq.times[sl])), 3),
         "temporal_ms": round(float(np.median(seq.temporal_times[sl])), 3),
         "hdr_flip_median": round(float(np.median(flips)), 5),
@@ -221,7 +227,11 @@ def write_moving(rows: list[dict], out: Path) -> None:
     if not rows:
         return
     r0 = rows[0]
-    raw = {r["N"]: r["hdr_flip_median"] for r in rows if r["temporal"] == "off" and r["N"]}
+    raw = {
+        (r["N"], r["select"]): r["hdr_flip_median"]
+        for r in rows
+        if r["temporal"] == "off" and r["N"]
+    }
     lines = [
         f"# Moving camera: {r0['scene']}, {r0['width']}x{r0['height']}, {r0['frames']} frames"
         f" orbiting {r0['degrees_per_frame']:g} deg/frame",
@@ -235,7 +245,7 @@ def write_moving(rows: list[dict], out: Path) -> None:
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        base = raw.get(r["N"]) if r["method"] == "stb" else None
+        base = raw.get((r["N"], r["select"])) if r["method"] == "stb" else None
         vs = f"{r['hdr_flip_median'] / base:.2f}x" if base else ""
         lines.append(
             f"| {r['label']} | {r['frame_ms']:.1f} | {r['temporal_ms']:.2f} |"

@@ -166,6 +166,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_PX": str(limits.BIG_TILE_PX),
         "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
         "LIM_TERM_SHARE_REL_DISTANCE": f"{limits.STB_TERM_SHARE_REL_DISTANCE:.6f}",
+        "LIM_RIS_TERM_FLOOR": f"{limits.STB_RIS_TERM_FLOOR:.6f}",
+        "LIM_RIS_PDF_FLOOR": f"{limits.STB_RIS_PDF_FLOOR:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),

@@ -134,10 +134,11 @@ OPTIONS = Schema(
         "select",
         str,
         "all",
-        choices=("all", "quad", "pixel"),
+        choices=("all", "quad", "pixel", "ris"),
         doc="samples a pixel evaluates: all N of its small tile (the talk's), or one of N "
         "drawn independently over all K, chosen per quad (terms for that one only: the "
-        "cost of N = 1) or per pixel (terms for all N): less tile-correlated noise",
+        "cost of N = 1), per pixel (terms for all N): less tile-correlated noise, or "
+        "resampled per pixel (ris: by a cheap target x term at the pixel, terms for all N)",
     ),
     Opt(
         "bigtile",
@@ -149,6 +150,8 @@ OPTIONS = Schema(
         "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights",
     ),
 )
+#: Shader define of each one-sample ``select`` mode.
+SELECT_DEFINES = {"quad": "STB_QUAD_SELECT", "pixel": "STB_PIXEL_SELECT", "ris": "STB_RIS_SELECT"}
 #: Debug views (``shaders/debug_<name>.frag``).
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
 #: Textures a debug view samples (uniform -> render buffer).
@@ -280,7 +283,7 @@ class StbLighting(LightingMethod):
             d["STB_PIXEL_TERMS"] = True
         if self.o["select"] != "all":
             d["STB_SELECT_ONE"] = True
-            d["STB_QUAD_SELECT" if self.o["select"] == "quad" else "STB_PIXEL_SELECT"] = True
+            d[SELECT_DEFINES[self.o["select"]]] = True
         if not any(k in d for k in ("HAS_SHADOWS", "HAS_CONES", "HAS_IES")):
             d["STB_UNIT_TERMS"] = True  # every term is 1: no term pass
         return d
@@ -359,6 +362,7 @@ class StbLighting(LightingMethod):
         unit = self._bind(frame, prog, unit, "u_pixel_terms", bufs.textures["stb_pixel_terms"])
         unit = self._bind(frame, prog, unit, "u_quad_lut", lut_inv)
         self._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        set_uniform(prog, "u_eps", float(self.o["eps"]))
         with frame.timings_scope("stb_lighting"):
             self.fullscreen_pass(frame, prog, "lighting")
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
