@@ -1,4 +1,5 @@
-// Temporal reuse for a moving camera (--temporal taa), one full-screen pass:
+// Temporal reuse for a moving camera (--temporal taa), the main full-screen pass
+// (after temporal_demod.frag):
 //  * reprojection: the previous position of the surface under this pixel from the
 //    G-buffer's motion vectors (camera motion and animated transforms) minus this
 //    frame's subpixel jitter (history lives on the unjittered pixel grid);
@@ -10,7 +11,7 @@
 //    the jitter moves the pixel between faces at one depth, and a stricter test
 //    dropped ~5 % of a still courtyard's pixels every frame); where nothing of the
 //    footprint matches but the texel's old surface is still beside the pixel (an edge
-//    the jitter crosses), the history of a 3x3 texel that saw this surface is borrowed;
+//    the jitter crosses), a 3x3 texel that saw this surface lends its history;
 //  * history rejection on noisy input: variance clipping of the history against a
 //    depth-weighted 13-tap neighbourhood (3x3 + 4 taps at distance 2) of lighting
 //    demodulated by albedo (the statistics of a spatially pre-filtered signal, not
@@ -21,15 +22,20 @@
 //    and box alike, so the blend does not depend on the exposure);
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
+// Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
+// (disocclusion: same_surface, neighbour_surface), history_catmull_rom,
+// clip_towards_mean, blend. Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
+// reads lighting / albedo + depth from one texture written by temporal_demod.frag
+// (one fetch a tap instead of four), the remodulation its albedo + alpha texture,
+// and the edge test fetches each neighbour's depth and normal once for all 4
+// footprint texels.
 #include "common/frame.glsl"
 #include "common/packing.glsl"
 
-uniform sampler2D u_current;   // lighting (scene-linear, this frame, jittered raster)
-uniform sampler2D u_depth;     // g_depth: linear view depth (m), 0 = no geometry
+uniform sampler2D u_demod;     // lighting / albedo (rgb), linear depth (m) (temporal_demod.frag)
+uniform sampler2D u_albedo;    // demodulation albedo (rgb), lighting alpha (temporal_demod.frag)
 uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
-uniform sampler2D u_base;      // g_base_rough
-uniform sampler2D u_f0;        // g_f0_metal
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
 uniform mat4 u_prev_view;      // previous world -> view
@@ -52,14 +58,8 @@ float luma(vec3 c) {
     return dot(c, LUMINANCE_REC709);
 }
 
-vec3 albedo_at(ivec2 px) {
-    vec4 b = texelFetch(u_base, px, 0);
-    vec4 f = texelFetch(u_f0, px, 0);
-    return max(b.rgb * (1.0 - f.a) + f.rgb, vec3(0.04));
-}
-
 vec3 history_bilinear_at(vec2 uv) {
-    return texture(u_history, uv).rgb;
+    return textureLod(u_history, uv, 0.0).rgb;
 }
 
 // Catmull-Rom through 5 bilinear taps (the 4 corner taps' weights are dropped).
@@ -95,160 +95,213 @@ const ivec2 TAPS[13] = ivec2[13](
     ivec2(0, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1), ivec2(-1, 0), ivec2(1, 0),
     ivec2(-1, 1), ivec2(0, 1), ivec2(1, 1), ivec2(-2, 0), ivec2(2, 0), ivec2(0, -2), ivec2(0, 2));
 
-void main() {
-    ivec2 ip = ivec2(gl_FragCoord.xy);
-    ivec2 size = ivec2(u_resolution.xy);
-    float d = texelFetch(u_depth, ip, 0).r;
-    vec2 enc = texelFetch(u_normal, ip, 0).xy;
-    vec3 n = oct_decode(enc);
-    vec3 alb = albedo_at(ip);
-    vec4 cur4 = texelFetch(u_current, ip, 0);
-    vec3 cur = cur4.rgb / alb;
-
-    // Neighbourhood statistics (depth-weighted: other surfaces do not widen the box).
-    vec3 m1 = vec3(0.0);
+// Depth-weighted mean and standard deviation of the demodulated lighting over the
+// 13 taps (other surfaces do not widen the box).
+void neighbourhood_stats(ivec2 ip, ivec2 size, float d, out vec3 m1, out vec3 sigma) {
+    m1 = vec3(0.0);
     vec3 m2 = vec3(0.0);
     float wsum = 0.0;
     for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
-        float dq = texelFetch(u_depth, q, 0).r;
-        float w = abs(dq - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
-        vec3 c = texelFetch(u_current, q, 0).rgb / albedo_at(q);
-        m1 += w * c;
-        m2 += w * c * c;
+        vec4 s = texelFetch(u_demod, q, 0);
+        float w = abs(s.a - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
+        m1 += w * s.rgb;
+        m2 += w * s.rgb * s.rgb;
         wsum += w;
     }
     m1 /= wsum;
     m2 /= wsum;
-    vec3 sigma = sqrt(max(m2 - m1 * m1, vec3(0.0)));
+    sigma = sqrt(max(m2 - m1 * m1, vec3(0.0)));
+}
 
-    // Reprojection (unjittered previous pixel position) and disocclusion.
+struct Reprojection {
+    vec2 pos;       // previous (unjittered) pixel position
+    float prev_d;   // this surface's depth in the previous view (m)
+    float gamma;    // clip box half extent (std devs)
+    float max_len;  // history length cap (frames)
+};
+
+// Reprojection (unjittered previous pixel position), box size and history cap. A
+// pixel whose surface has not moved (< 0.5 px) keeps a longer history and a wider
+// box: with a still camera the box only has to catch what the light caps and
+// disocclusion miss, and every clip of noisy input is a bias.
+Reprojection reproject(ivec2 ip, float d) {
+    Reprojection r;
     vec2 mv = texelFetch(u_motion, ip, 0).xy - u_jitter;
-    vec2 pos = gl_FragCoord.xy - mv;
-    float prev_d = d;
-    // A pixel whose surface has not moved (< 0.5 px) keeps a longer history and a
-    // wider box: with a still camera the box only has to catch what the light
-    // caps and disocclusion miss, and every clip of noisy input is a bias.
+    r.pos = gl_FragCoord.xy - mv;
+    r.prev_d = d;
     float still = clamp(1.0 - 2.0 * length(mv), 0.0, 1.0);
-    float gamma = mix(u_gamma.x, u_gamma.y, still);
-    float max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
+    r.gamma = mix(u_gamma.x, u_gamma.y, still);
+    r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     if (d > 0.0) {
         vec3 world = world_pos_from_depth(gl_FragCoord.xy, d);
-        prev_d = max(-(u_prev_view * vec4(world, 1.0)).z, 1e-6);
+        r.prev_d = max(-(u_prev_view * vec4(world, 1.0)).z, 1e-6);
         for (int i = 0; i < u_light_changes; ++i) {
             if (distance(world, u_light_spheres[i].xyz) < u_light_spheres[i].w) {
-                max_len = min(max_len, u_light_caps[i]);
+                r.max_len = min(r.max_len, u_light_caps[i]);
             }
         }
     }
-    float tol = 0.03 * prev_d + 1e-4;
-    float shift = prev_d - d;  // this surface's depth change, applied to its neighbours
-    vec2 base = floor(pos - 0.5);
-    vec2 f = pos - 0.5 - base;
-    float valid_w = 0.0;
-    int valid_n = 0;
-    float hist_len = 0.0;
-    vec3 bil = vec3(0.0);
-    float mom2 = 0.0;
+    return r;
+}
+
+struct Footprint {
+    vec3 bil;        // bilinear-weighted sum of the agreeing texels' history
+    float mom2;      // ... of their luma second moments
+    float hist_len;  // ... of their history lengths
+    float valid_w;   // sum of the agreeing texels' bilinear weights
+    int valid_n;     // agreeing texels (4: Catmull-Rom)
+};
+
+// Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
+// depth it had in the previous view, not its opposite side (sky: sky).
+bool same_surface(vec4 g, vec3 gn, float d, vec3 n, float prev_d) {
+    if (d <= 0.0) {
+        return g.x <= 0.0;
+    }
+    return g.x > 0.0 && abs(g.x - prev_d) <= 0.03 * prev_d + 1e-4 && dot(gn, n) > -0.5;
+}
+
+// Else: is it the surface of a 3x3 neighbour (depth dj moved like this pixel's by
+// `shift`, facing the same half-space as nj), seen through another jitter offset at
+// an edge? Not a disocclusion. (A normal test of 0.9 reset the pixels of curved rims,
+// whose normal turns by more than that between neighbours, every time the jitter
+// moved them on or off the rim.)
+bool neighbour_surface(vec4 g, vec3 gn, float dj, vec3 nj, float shift) {
+    return dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4 && dot(gn, nj) > 0.0;
+}
+
+// Disocclusion over the 4 texels of the bilinear footprint and the bilinear sums of
+// the agreeing ones. Each 3x3 neighbour's depth and normal is fetched once, and only
+// while a footprint texel still needs it (edge pixels).
+Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
+    ivec2 base = ivec2(floor(r.pos - 0.5));
+    vec2 f = r.pos - 0.5 - floor(r.pos - 0.5);
+    vec4 g[4];
+    vec3 gn[4];
+    bool inside[4];
+    bool same[4];
+    bool open = false;  // some texel may still be a neighbour's surface
     for (int k = 0; k < 4; ++k) {
-        ivec2 t = ivec2(base) + ivec2(k & 1, k >> 1);
-        if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
-        vec4 g = texelFetch(u_prev_geo, t, 0);
-        bool same;
-        if (d <= 0.0) {
-            same = g.x <= 0.0;
-        } else {
-            vec3 gn = oct_decode(g.yz);
-            same = g.x > 0.0 && abs(g.x - prev_d) <= tol && dot(gn, n) > -0.5;
-            // Else: is it a surface of this 3x3 neighbourhood (depth, facing the same
-            // half-space), seen through another jitter offset at an edge? Not a
-            // disocclusion. (A normal test of 0.9 reset the pixels of curved rims,
-            // whose normal turns by more than that between neighbours, every time
-            // the jitter moved them on or off the rim.)
-            // (Fetched here, not kept from the statistics loop: only edge pixels
-            // get this far, and arrays indexed in loops are slow on llvmpipe.)
-            for (int j = 1; j < 9 && !same && g.x > 0.0; ++j) {
-                ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
-                float dj = texelFetch(u_depth, q, 0).r;
-                same = dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4
-                       && dot(gn, oct_decode(texelFetch(u_normal, q, 0).xy)) > 0.0;
+        ivec2 t = base + ivec2(k & 1, k >> 1);
+        inside[k] = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, size));
+        g[k] = inside[k] ? texelFetch(u_prev_geo, t, 0) : vec4(0.0);
+        gn[k] = oct_decode(g[k].yz);
+        same[k] = inside[k] && same_surface(g[k], gn[k], d, n, r.prev_d);
+        open = open || (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0);
+    }
+    float shift = r.prev_d - d;  // this surface's depth change, applied to its neighbours
+    for (int j = 1; j < 9 && open; ++j) {
+        ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
+        float dj = texelFetch(u_demod, q, 0).a;
+        vec3 nj = oct_decode(texelFetch(u_normal, q, 0).xy);
+        open = false;
+        for (int k = 0; k < 4; ++k) {
+            if (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0) {
+                same[k] = neighbour_surface(g[k], gn[k], dj, nj, shift);
+                open = open || !same[k];
             }
         }
-        if (!same) continue;
-        vec4 h = texelFetch(u_history, t, 0);
+    }
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0);
+    for (int k = 0; k < 4; ++k) {
+        if (!same[k]) continue;
+        vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
         float w = (k & 1) == 1 ? f.x : 1.0 - f.x;
         w *= (k >> 1) == 1 ? f.y : 1.0 - f.y;
-        bil += w * h.rgb;
-        mom2 += w * g.w;
-        valid_w += w;
-        valid_n += 1;
-        hist_len += w * h.a;
+        fp.bil += w * h.rgb;
+        fp.mom2 += w * g[k].w;
+        fp.valid_w += w;
+        fp.valid_n += 1;
+        fp.hist_len += w * h.a;
     }
+    return fp;
+}
 
-    // History borrowing: nothing of the footprint is this surface, but what this
-    // texel saw last frame is still beside the pixel: an edge the jitter moves across
-    // (a 1 px post, a silhouette against the sky, a curved rim), not a disocclusion
-    // (floor uncovered by a moving box: the box is gone from the neighbourhood). Take
-    // the history of the 3x3 texel around the reprojected position that saw this
-    // surface last frame (nearest depth, same side), instead of starting again from
-    // one frame's noise. Only such pixels pay for the search.
-    ivec2 c0 = ivec2(floor(pos));
-    bool edge = false;  // the surface this texel saw last frame is still beside this pixel
-    if (valid_n == 0 && u_reset < 0.5 && all(greaterThanEqual(c0, ivec2(0))) && all(lessThan(c0, size))) {
-        float g0 = texelFetch(u_prev_geo, c0, 0).x;
-        for (int j = 1; j < 9 && !edge; ++j) {
-            float dj = texelFetch(u_depth, clamp(ip + TAPS[j], ivec2(0), size - 1), 0).r;
-            edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
-        }
+// History borrowing: nothing of the footprint is this surface, but what the texel
+// under the pixel saw last frame is still beside it -- an edge the jitter moves
+// across (a 1 px post, a silhouette against the sky, a curved rim), not a
+// disocclusion (floor uncovered by a moving box: the box is gone from the
+// neighbourhood). Then the history of the 3x3 texel around the reprojected position
+// that saw this surface last frame (nearest depth, same side) stands in, instead of
+// starting again from one frame's noise. Only such pixels pay for the search.
+Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0);
+    ivec2 c0 = ivec2(floor(r.pos));
+    if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
+    float g0 = texelFetch(u_prev_geo, c0, 0).x;
+    float shift = r.prev_d - d;
+    bool edge = false;
+    for (int j = 1; j < 9 && !edge; ++j) {
+        float dj = texelFetch(u_demod, clamp(ip + TAPS[j], ivec2(0), size - 1), 0).a;
+        edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
     }
-    if (edge) {
-        float best = 1e30;
-        for (int j = 1; j < 9; ++j) {
-            ivec2 t = c0 + TAPS[j];
-            if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
-            vec4 g = texelFetch(u_prev_geo, t, 0);
-            float err;
-            if (d <= 0.0) {
-                if (g.x > 0.0) continue;
-                err = 0.0;
-            } else {
-                err = abs(g.x - prev_d);
-                if (!(g.x > 0.0) || err > 0.05 * prev_d + 1e-4 || dot(oct_decode(g.yz), n) < 0.5) continue;
+    if (!edge) return fp;
+    float best = 1e30;
+    for (int j = 1; j < 9; ++j) {
+        ivec2 t = c0 + TAPS[j];
+        if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+        vec4 g = texelFetch(u_prev_geo, t, 0);
+        float err = 0.0;
+        if (d <= 0.0) {
+            if (g.x > 0.0) continue;
+        } else {
+            err = abs(g.x - r.prev_d);
+            if (!(g.x > 0.0) || err > 0.05 * r.prev_d + 1e-4 || dot(oct_decode(g.yz), n) < 0.5) {
+                continue;
             }
-            if (err >= best) continue;
-            best = err;
-            vec4 h = texelFetch(u_history, t, 0);
-            bil = h.rgb;
-            mom2 = g.w;
-            hist_len = h.a;
-            valid_w = 1.0;
-            valid_n = 1;
         }
+        if (err >= best) continue;
+        best = err;
+        vec4 h = texelFetch(u_history, t, 0);
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1);
     }
+    return fp;
+}
 
-    // History fix: a pixel with a short history (disoccluded, or capped by a light
-    // change) takes the neighbourhood mean instead of its own noisy sample for its
-    // first frames (full weight at n = 1, none from n = 5 on).
+// History fix: a pixel with a short history (disoccluded, or capped by a light
+// change) takes the neighbourhood mean instead of its own noisy sample for its
+// first frames (full weight at n = 1, none from n = 5 on). Returns the demodulated
+// result and its history length; tm2: the luma second moment to keep.
+vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2) {
     vec3 result = m1;
     float len = 1.0;
     float lc = luma(cur);
-    float tm2 = lc * lc;
-    if (u_reset < 0.5 && valid_n > 0 && valid_w > 1e-4) {
-        vec3 h = valid_n == 4 ? history_catmull_rom(pos) : bil / valid_w;
+    tm2 = lc * lc;
+    if (u_reset < 0.5 && fp.valid_n > 0 && fp.valid_w > 1e-4) {
+        vec3 h = fp.valid_n == 4 ? history_catmull_rom(r.pos) : fp.bil / fp.valid_w;
         // The box: spatial spread, widened to the pixel's own temporal spread
         // (STB picks lights per tile, so neighbours share a frame's misses and
         // the spatial spread alone underestimates the noise: clipping to it
         // pulled converged history back to one frame's noise).
-        mom2 /= valid_w;
+        float mom2 = fp.mom2 / fp.valid_w;
         float lh = luma(h);
         float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
-        vec3 ext = gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
+        vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
-        len = min(floor(hist_len / valid_w + 0.5) + 1.0, max_len);
+        len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
         result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, 1.0)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);
     }
-    o_history = vec4(result, len);
-    o_color = vec4(result * alb, cur4.a);
+    return vec4(result, len);
+}
+
+void main() {
+    ivec2 ip = ivec2(gl_FragCoord.xy);
+    ivec2 size = ivec2(u_resolution.xy);
+    vec4 centre = texelFetch(u_demod, ip, 0);
+    float d = centre.a;
+    vec2 enc = texelFetch(u_normal, ip, 0).xy;
+    vec3 m1, sigma;
+    neighbourhood_stats(ip, size, d, m1, sigma);
+    Reprojection r = reproject(ip, d);
+    vec3 n = oct_decode(enc);
+    Footprint fp = footprint_history(ip, size, d, n, r);
+    if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
+    float tm2;
+    vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
+    o_history = hist;
+    vec4 alb = texelFetch(u_albedo, ip, 0);
+    o_color = vec4(hist.rgb * alb.rgb, alb.a);
     o_geo = vec4(d, enc, tm2);
 }

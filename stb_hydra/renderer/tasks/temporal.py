@@ -4,7 +4,9 @@ Reprojects last frame's history with the G-buffer's motion vectors (camera motio
 and animated transforms), rejects it where the surface was not visible (previous
 depth and normal) and clips it against the statistics of a depth-weighted
 neighbourhood of albedo-demodulated lighting, then blends 1/n with a per-pixel
-history length n (``shaders/temporal.frag`` says how). History lives in
+history length n (``shaders/temporal.frag`` says how; ``temporal_demod.frag`` first
+writes this frame's demodulated lighting + depth, ``taa_demod``, so the
+neighbourhood is one fetch a tap). History lives in
 ping-pong buffers (``taa_hist_*``: demodulated lighting + n; ``taa_geo_*``: depth +
 normal) and survives across frames of an engine; it is dropped on the first frame,
 a viewport resize, a camera cut (a large view change: :func:`is_camera_cut`) and a
@@ -40,6 +42,10 @@ HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
+#: Lighting / albedo + linear depth; albedo + lighting alpha of this frame
+#: (``temporal_demod.frag``).
+DEMOD = "taa_demod"
+ALBEDO = "taa_albedo"
 
 #: History length cap (frames) of a moving / a still pixel (its surface moved by
 #: less than half a pixel): the noise falls like a 1/n average up to this many
@@ -167,6 +173,8 @@ class TemporalTask(Pass):
     writes = (
         Rec(SceneColor),
         Tex(OUTPUT, "rgba16f"),
+        Tex(DEMOD, "rgba32f"),
+        Tex(ALBEDO, "rgba32f"),
         *(Tex(n, "rgba32f") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in GEOMETRY),
     )
@@ -232,14 +240,24 @@ class TemporalTask(Pass):
         tex = bufs.textures
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
-        prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag")
-        units = (
+        lib = shader_library(ctx)
+        demod = lib.program("fullscreen.vert", "temporal_demod.frag")
+        demod_units = (
             ("u_current", "lighting"),
             ("u_depth", "g_depth"),
-            ("u_normal", "g_normal"),
-            ("u_motion", "g_motion"),
             ("u_base", "g_base_rough"),
             ("u_f0", "g_f0_metal"),
+        )
+        for unit, (uniform, name) in enumerate(demod_units):
+            tex[name].use(unit)
+            set_uniform(demod, uniform, unit)
+        draw_fullscreen(ctx, demod, bufs.framebuffer("fb_taa_demod", [DEMOD, ALBEDO]), bufs.size)
+        prog = lib.program("fullscreen.vert", "temporal.frag")
+        units = (
+            ("u_demod", DEMOD),
+            ("u_albedo", ALBEDO),
+            ("u_normal", "g_normal"),
+            ("u_motion", "g_motion"),
             ("u_history", h_src),
             ("u_prev_geo", g_src),
         )
