@@ -15,6 +15,10 @@
 #include "common/gbuffer.glsl"
 #include "common/rng.glsl"
 #include "common/lights.glsl"
+// Area lights: fewer light points per term, a fresh point set each frame (the frames'
+// average converges to the whole light's visibility, the reference's value).
+#define AREA_SHADOW_POINTS LIM_AREA_SHADOW_POINTS_STB
+#define AREA_SHADOW_PER_FRAME
 #include "common/shadow.glsl"
 #include "common/tiles.glsl"
 

@@ -211,6 +211,76 @@ def test_point_and_spot_against_mitsuba(kind):
     assert np.median(err) < 1e-3, np.median(err)
 
 
+# --- soft shadows: exact visibility of the rect past the box --------------------------------
+
+
+def _floor_points(stage, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """World points (h, w, 3) where each pixel centre's camera ray meets the floor (y = 0),
+    and the rays' origin; from the stage's camera (pxr's frustum, not our renderer)."""
+    from pxr import Gf, Usd, UsdGeom
+
+    cam = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default())
+    fr = cam.frustum
+    pts = np.zeros((h, w, 3))
+    for j in range(h):
+        for i in range(w):
+            r = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / w - 1, 1 - 2 * (j + 0.5) / h))
+            o, d = np.array(r.startPoint), np.array(r.direction)
+            pts[j, i] = o - o[1] / d[1] * d
+    return pts, np.array(fr.position)
+
+
+def _segments_hit_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Slab test: does segment a -> b (arrays (..., 3)) pass through the box [lo, hi]?"""
+    d = b - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1, t2 = (lo - a) / d, (hi - a) / d
+    tmin = np.nanmax(np.minimum(t1, t2), -1)
+    tmax = np.nanmin(np.maximum(t1, t2), -1)
+    return (tmin <= tmax) & (tmax > 0) & (tmin < 1)
+
+
+def test_rect_soft_shadow_matches_exact_visibility():
+    """The 1 x 0.5 m rect 0.2 m above the 0.4 m box (area_scenes "rect"; as large as its
+    distance to the blocker: a skewed, almost all-penumbra shadow). Every visible floor
+    pixel against the unshadowed render x the exact visibility: 48 x 48 points of the
+    rect, each weighted by cos_r cos_e / d^2, each segment slab-tested against the box
+    (numpy; agrees with Mitsuba to 0.46 % median, 1.5 % p95 in tools/area_lights.py).
+    Measured at 128x72: median 0.0 %, p95 9.0 % (PCSS from the centre map: 12.0 %)."""
+    w, h = 128, 72
+    stage = area_stage("rect")
+    ours = stb_hydra.render(stage, width=w, height=h, lighting="reference")[..., 1]
+    free = stb_hydra.render(stage, width=w, height=h, lighting="reference", shadows=False)[..., 1]
+    P, eye = _floor_points(stage, w, h)
+    lo, hi = np.array([0.5, 0.0, 0.1]), np.array([0.9, 0.4, 0.5])  # the box
+    on_floor = ~_segments_hit_box(np.broadcast_to(eye, P.shape), P, lo, hi)
+    u = (np.arange(48) + 0.5) / 48
+    gx, gz = np.meshgrid(-0.5 + u, -0.25 + 0.5 * u)
+    pts = np.stack([gx.ravel(), np.full(gx.size, 0.6), gz.ravel()], -1)
+    vis = np.ones((h, w))
+    for j in range(h):
+        a = np.broadcast_to(P[j][:, None, :], (w, len(pts), 3))
+        b = np.broadcast_to(pts[None], a.shape)
+        d = b - a
+        r2 = (d * d).sum(-1)
+        wt = d[..., 1] ** 2 / r2**2  # cos_r = cos_e = dy / r (floor up, rect down)
+        vis[j] = (wt * ~_segments_hit_box(a, b, lo, hi)).sum(-1) / wt.sum(-1)
+    exact = free * vis
+    fmax = float(free[on_floor].max())
+    # Floor pixels brighter than 1 % of the floor's maximum, away from the box's outline
+    # (a pixel there is part box, part floor).
+    edge = ~on_floor
+    for ax in (0, 1):
+        for s in (1, -1):
+            edge = edge | np.roll(~on_floor, s, ax)
+    mask = on_floor & ~edge & (exact > 0.01 * fmax)
+    err = np.abs(ours - exact)[mask] / exact[mask]
+    assert mask.sum() > 2500 and (vis[mask] < 0.9).sum() > 300
+    assert np.median(err) < 0.01, np.median(err)
+    assert np.percentile(err, 95) < 0.10, np.percentile(err, 95)
+    assert np.isfinite(ours).all()
+
+
 # --- STB ------------------------------------------------------------------------------------
 
 

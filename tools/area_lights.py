@@ -31,6 +31,14 @@ def _point_model() -> None:
     sc.GLSL_CONSTANTS["LIM_AREA_SPEC_LTC"] = "2.0e9"
 
 
+def _pcss() -> None:
+    """Soft shadows of area lights by PCSS on the centre map (before the multi-point
+    visibility): ``LIM_AREA_SHADOW_POINTS`` = 0 in this process's GLSL constants."""
+    from stb_hydra.renderer import shader_constants as sc
+
+    sc.GLSL_CONSTANTS["LIM_AREA_SHADOW_POINTS"] = "0"
+
+
 def _png(path: Path, rgb: np.ndarray) -> None:
     import OpenImageIO as oiio
 
@@ -40,6 +48,30 @@ def _png(path: Path, rgb: np.ndarray) -> None:
     out.open(str(path), spec)
     out.write_image(img)
     out.close()
+
+
+def _mitsuba_cached(
+    cache: str, stage: object, name: str, spp: int, es: int, w: int, h: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``mitsuba_ref.render_mitsuba`` of ``stage``, kept in ``cache/`` (a folder; "" = no
+    cache) under a key of the scene's text and the sample counts: Mitsuba's truths take
+    minutes on a shared machine, and a shadow change does not change them."""
+    import hashlib
+
+    import mitsuba_ref as mr
+
+    if cache:
+        text = stage.GetRootLayer().ExportToString()  # type: ignore[attr-defined]
+        key = hashlib.sha1(f"{text}|{w}x{h}|{spp}|{es}".encode()).hexdigest()[:16]
+        f = Path(cache) / f"{name}_{key}.npz"
+        if f.exists():
+            z = np.load(f)
+            return z["ref"], z["hit"], z["light"], z["nrm"]
+    ref, hit, light, nrm = mr.render_mitsuba(stage, w, h, spp, emitter_samples=es)
+    if cache:
+        f.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(f, ref=ref, hit=hit, light=light, nrm=nrm)
+    return ref, hit, light, nrm
 
 
 def accuracy(args: argparse.Namespace) -> None:
@@ -53,6 +85,8 @@ def accuracy(args: argparse.Namespace) -> None:
 
     if args.point_model:
         _point_model()
+    if args.pcss:
+        _pcss()
     out = Path(args.out) if args.out else None
     if out:
         out.mkdir(parents=True, exist_ok=True)
@@ -65,6 +99,8 @@ def accuracy(args: argparse.Namespace) -> None:
     print("|---|---|---|---|---|")
     for kind in args.kinds.split(","):
         for box in (True, False):
+            if args.box != "both" and box != (args.box == "yes"):
+                continue
             if not box and kind in ("point", "spot"):
                 continue
             stage = area_scenes.area_stage(kind) if box else area_scenes.area_stage_no_box(kind)
@@ -73,7 +109,9 @@ def accuracy(args: argparse.Namespace) -> None:
             delta = kind in ("point", "spot")
             spp = 4 * args.spp if delta else args.spp
             es = 1 if delta else args.emitter_samples
-            ref, hit, light, nrm = mr.render_mitsuba(stage, w, h, spp, emitter_samples=es)
+            ref, hit, light, nrm = _mitsuba_cached(
+                args.cache, stage, f"{kind}_{int(box)}", spp, es, w, h
+            )
             ours = stb_hydra.render(stage, width=w, height=h, lighting="reference")
             err, mask, emap = mr.compare(ours, ref, hit, light, nrm)
             med, p95 = np.median(err) * 100, np.percentile(err, 95) * 100
@@ -92,7 +130,7 @@ def accuracy(args: argparse.Namespace) -> None:
                 em = np.stack([e * (sign > 0), np.zeros_like(e), e * (sign < 0)], -1)
                 row = np.concatenate([tm(ours), tm(ref), em], 1)
                 row = np.repeat(np.repeat(row, 2, 0), 2, 1)
-                suffix = "_point" if args.point_model else ""
+                suffix = "_point" if args.point_model else "_pcss" if args.pcss else ""
                 _png(out / f"{kind}{suffix}.png", row)
 
 
@@ -274,6 +312,8 @@ def glossy(args: argparse.Namespace) -> None:
 
     if args.point_model:
         _point_model()
+    if args.pcss:
+        _pcss()
     out = Path(args.out) if args.out else None
     w, h = args.width, args.height
     cam = np.array([0.0, 2.4, 2.2])
@@ -365,6 +405,8 @@ def cost_one(args: argparse.Namespace) -> None:
 
     if args.model == "point":
         _point_model()
+    if args.model == "pcss":
+        _pcss()
     stage = area_scenes.many_area_lights_stage(args.lights)
     eng = Engine(stage, RenderSettings(width=745, height=360, lighting=args.method, profile=True))
     try:
@@ -377,31 +419,44 @@ def cost_one(args: argparse.Namespace) -> None:
 
 def cost(args: argparse.Namespace) -> None:
     """Frame time of the area model against the point model (the same area lights),
-    reference and STB, 745 x 360: one process per (model, repeat), run point, area,
-    point, area so that a shared machine's load drift hits both alike; medians over
-    both repeats of ``--frames`` finished frames, and of the lighting task's time."""
+    reference and STB, 745 x 360: one process per (model, repeat), the models run in
+    turn ``--repeats`` times so that a shared machine's load drift hits them alike;
+    medians over the repeats' ``--frames`` finished frames, and of the lighting task's
+    time. ``--models point,pcss,area`` adds the area model with its shadows by PCSS."""
     import subprocess
 
     from stb_hydra.apps.bench_core import load_average
 
-    print(f"745x360, 2 x {args.frames} frames each (median), load average {load_average()}")
-    print("| lights | method | point model: frame / lighting (ms) | area model | ratio |")
-    print("|---|---|---|---|---|")
-    for n, method in ((24, "reference"), (24, "stb"), (120, "stb")):
-        res: dict[str, list[tuple[float, float]]] = {"point": [], "area": []}
-        for model in ("point", "area", "point", "area"):
-            cmd = [sys.executable, __file__, "_cost_one", "--model", model, "--method", method]
-            cmd += ["--lights", str(n), "--frames", str(args.frames)]
-            out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
-            line = next(x for x in out.splitlines() if x.startswith("RESULT"))
-            f, li = (float(x) for x in line.split()[1:])
-            res[model].append((f, li))
-        fp, lp = (float(np.median([r[i] for r in res["point"]])) for i in (0, 1))
-        fa, la = (float(np.median([r[i] for r in res["area"]])) for i in (0, 1))
-        print(
-            f"| {n} | {method} | {fp:.0f} / {lp:.0f} | {fa:.0f} / {la:.0f} | "
-            f"{fa / fp:.2f} / {la / max(lp, 1e-9):.2f} |"
-        )
+    models = args.models.split(",")
+    print(
+        f"745x360, {args.repeats} x {args.frames} frames each (median), "
+        f"load average {load_average()}"
+    )
+    print(
+        "| lights | method | "
+        + " | ".join(f"{m}: frame / lighting (ms)" for m in models)
+        + " | "
+        + " | ".join(f"{m} / {models[0]}" for m in models[1:])
+        + " |"
+    )
+    print("|---|---|" + "---|" * (2 * len(models) - 1))
+    for cfg in args.configs.split(","):
+        n_s, method = cfg.split(":")
+        n = int(n_s)
+        res: dict[str, list[tuple[float, float]]] = {m: [] for m in models}
+        for _ in range(args.repeats):
+            for model in models:
+                cmd = [sys.executable, __file__, "_cost_one", "--model", model, "--method", method]
+                cmd += ["--lights", str(n), "--frames", str(args.frames)]
+                out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
+                line = next(x for x in out.splitlines() if x.startswith("RESULT"))
+                f, li = (float(x) for x in line.split()[1:])
+                res[model].append((f, li))
+        med = {m: tuple(float(np.median([r[i] for r in res[m]])) for i in (0, 1)) for m in models}
+        f0, l0 = med[models[0]]
+        cells = [f"{med[m][0]:.0f} / {med[m][1]:.0f}" for m in models]
+        ratios = [f"{med[m][0] / f0:.2f} / {med[m][1] / max(l0, 1e-9):.2f}" for m in models[1:]]
+        print(f"| {n} | {method} | " + " | ".join(cells + ratios) + " |")
         sys.stdout.flush()
 
 
@@ -416,6 +471,9 @@ def main(argv: list[str] | None = None) -> None:
     a.add_argument("--emitter-samples", type=int, default=32)
     a.add_argument("--kinds", default="rect,disk,sphere,cylinder,point,spot")
     a.add_argument("--point-model", action="store_true")
+    a.add_argument("--cache", default="", help="folder keeping Mitsuba's renders")
+    a.add_argument("--pcss", action="store_true", help="area shadows by PCSS (before)")
+    a.add_argument("--box", choices=("both", "yes", "no"), default="both")
     b = sub.add_parser("bench-scenes")
     b.add_argument("--out", required=True)
     b.add_argument("--lights", type=int, default=24)
@@ -433,8 +491,11 @@ def main(argv: list[str] | None = None) -> None:
     s.add_argument("--point-model", action="store_true")
     c = sub.add_parser("cost")
     c.add_argument("--frames", type=int, default=4)
+    c.add_argument("--repeats", type=int, default=2)
+    c.add_argument("--models", default="point,area")
+    c.add_argument("--configs", default="24:reference,24:stb,120:stb")
     o = sub.add_parser("_cost_one")
-    o.add_argument("--model", choices=("point", "area"), required=True)
+    o.add_argument("--model", choices=("point", "area", "pcss"), required=True)
     o.add_argument("--method", default="reference")
     o.add_argument("--lights", type=int, default=24)
     o.add_argument("--frames", type=int, default=4)

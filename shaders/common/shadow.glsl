@@ -66,8 +66,9 @@ bool shadow_texel(ShadowMap S, vec3 X, out vec2 t) {
     return true;
 }
 
-// Soft shadow of an area light: PCSS (Fernando 2005) on the map captured from the
-// light's centre, with the kernel shaped like the light. A blocker at distance z from
+// Soft shadow of an area light by PCSS (Fernando 2005) -- the method before the
+// multi-point visibility below, kept for comparison runs (LIM_AREA_SHADOW_POINTS = 0,
+// tools/area_lights.py --pcss / cost --models) -- on the map captured from the light's centre, with the kernel shaped like the light. A blocker at distance z from
 // the light shadows the receiver (distance D) from the light's points seen through a
 // copy of the light's shape scaled by (D - z) / z around the receiver. Taps are points
 // of that shape (a Vogel disk mapped onto its two half axes, area-preserving), projected
@@ -115,10 +116,202 @@ float shadow_pcss(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) 
     return v / float(PCSS_FILTER_TAPS);
 }
 
+// ---- Area lights: visibility towards several points of the light (issue 20) ----------
+// The map is captured from the light's centre C. Visibility of the light from a receiver
+// is the fraction (weighted by each point's diffuse contribution) of light points L_j
+// whose segment L_j -> receiver is unoccluded, each segment tested by ray-marching the
+// centre map: a point X is "behind" when |X - C| exceeds the map's depth towards X. The
+// segment is blocked where it goes from in front to behind *through a surface*: the
+// crossing is bisected and kept only when X is then within a thin band behind the map's
+// depth (a real front surface); entering the centre's shadow volume from the side
+// (behind a silhouette, where the depth jumps) leaves X far behind and is not a block.
+// Limits: the map holds only surfaces C sees, so a blocker the light's edge sees but
+// its centre does not (or one nearer C than the map's near plane) casts nothing.
+#ifndef AREA_SHADOW_POINTS
+#define AREA_SHADOW_POINTS LIM_AREA_SHADOW_POINTS
+#endif
+
+// R2 low-discrepancy point k (Roberts 2018) in [0, 1)^2, Cranley-Patterson shifted by u0.
+vec2 r2_point(int k, vec2 u0) {
+    return fract(u0 + float(k) * vec2(0.7548776662, 0.5698402910));
+}
+
+// Point of light L (world, m) for the unit-square sample u, as seen from receiver Pb:
+// rect and disk uniformly by area; a sphere's silhouette disk facing Pb; a cylinder's
+// strip (its length x its diameter) facing Pb. C: the captured centre.
+vec3 light_sample_point(Light L, vec3 C, vec3 Pb, vec2 u) {
+    vec3 X = L.tangent_type.xyz;
+    float kind = L.area.z;
+    if (kind == AREA_RECT) {
+        return C + X * (L.area.x * (2.0 * u.x - 1.0)) + light_bitangent(L) * (L.area.y * (2.0 * u.y - 1.0));
+    }
+    vec3 w = Pb - C;
+    float D = length(w);
+    w /= max(D, 1e-9);
+    if (kind == AREA_CYLINDER) {
+        vec3 side = cross(X, w);
+        side = dot(side, side) > 1e-8 ? normalize(side) : light_bitangent(L);
+        return C + X * (L.area.x * (2.0 * u.x - 1.0)) + side * (L.area.y * (2.0 * u.y - 1.0));
+    }
+    float r = L.area.x;
+    vec3 c = C, A, B;
+    if (kind == AREA_DISK) {
+        A = X; B = light_bitangent(L);
+    } else {                                   // sphere: the silhouette circle from Pb
+        float q = min(r / max(D, 1e-9), 0.999);
+        c = C + w * (r * q);
+        r *= sqrt(1.0 - q * q);
+        A = normalize(abs(w.y) < 0.9 ? cross(w, vec3(0.0, 1.0, 0.0)) : cross(w, vec3(1.0, 0.0, 0.0)));
+        B = cross(w, A);
+    }
+    float rr = r * sqrt(u.x), a = 6.2831853 * u.y;
+    return c + rr * (cos(a) * A + sin(a) * B);
+}
+
+// How far (m) X lies behind the map's first surface towards it: |X - C| minus the depth
+// of the nearest texel (a silhouette stays where it is, +-half a texel) -- or, within
+// `near_rcv` of the receiver, minus the farthest depth of the 2x2 gather (conservative:
+// the receiver's own surface never reads as in front of it). False outside a spot map
+// (nothing known there: in front).
+bool map_behind(ShadowMap S, vec3 X, bool near_rcv, out float delta) {
+    vec2 t;
+    delta = -1.0;
+    if (!shadow_texel(S, X, t)) return false;
+    float z;
+    if (near_rcv) {
+        vec4 g = textureGather(u_shadow_atlas, (floor(t) + 1.0) * S.params.z, 0);
+        z = max(max(g.x, g.y), max(g.z, g.w));
+    } else {
+        z = texelFetch(u_shadow_atlas, ivec2(floor(t + 0.5)), 0).r;
+    }
+    // z = 1: nothing within the map's range in that direction: X is in front.
+    delta = z < LIM_AREA_SHADOW_EMPTY_DEPTH ? length(X - S.pos_range.xyz) - z * S.pos_range.w : -1.0;
+    return true;
+}
+
+// Visibility in [0, 1] of segment A (on the light) -> B (the biased receiver) through
+// the centre map: LIM_AREA_SHADOW_STEPS samples at t = (i + tj) / steps, tj in (0, 1],
+// and one at B; the first front-to-behind transition is bisected
+// (LIM_AREA_SHADOW_REFINE times) and is a block when the point then lies within the
+// thickness band behind the map's depth.
+float segment_visibility(Light L, ShadowMap S, vec3 A, vec3 B, float tj) {
+    float prev = -1.0, tprev = 0.0;             // A: on the light, nearer than the near plane
+    float len = length(B - A);
+    vec3 C = S.pos_range.xyz;
+    // Within this many metres of the receiver (at the receiver's distance) lookups are
+    // the conservative gather-max.
+    float rcv = LIM_AREA_SHADOW_RECEIVER_TEXELS * S.params.y;
+    for (int i = 0; i <= LIM_AREA_SHADOW_STEPS; ++i) {
+        float t = i < LIM_AREA_SHADOW_STEPS ? (float(i) + tj) / float(LIM_AREA_SHADOW_STEPS) : 1.0;
+        if (t <= tprev) continue;
+        vec3 X = mix(A, B, t);
+        float dl;
+        map_behind(S, X, (1.0 - t) * len < rcv * length(X - C), dl);
+        if (dl > 0.0 && prev <= 0.0) {
+            float ta = tprev, tb = t, db = dl;
+            for (int k = 0; k < LIM_AREA_SHADOW_REFINE; ++k) {
+                float tm = 0.5 * (ta + tb), dm;
+                vec3 Xm = mix(A, B, tm);
+                map_behind(S, Xm, (1.0 - tm) * len < rcv * length(Xm - C), dm);
+                if (dm > 0.0) { tb = tm; db = dm; } else ta = tm;
+            }
+            vec3 Xb = mix(A, B, tb);
+            float thick = LIM_AREA_SHADOW_THICK_TEXELS * S.params.y * length(Xb - C)
+                        + LIM_AREA_SHADOW_THICK_STEPS * (tb - ta) * len;
+            if (db < thick) {
+                float maxd = L.shadow_color.w;
+                if (maxd <= 0.0) return 0.0;
+                float to_occ = (1.0 - tb) * len;
+                float fall = L.misc.x > 0.0 ? min(L.misc.x, maxd) : 0.0;
+                float fade = fall > 0.0
+                    ? pow(clamp((to_occ - (maxd - fall)) / fall, 0.0, 1.0), max(L.misc.y, 1e-3))
+                    : (to_occ > maxd ? 1.0 : 0.0);
+                if (fade < 1.0) return fade;
+            }
+        }
+        prev = dl;
+        tprev = t;
+    }
+    return 1.0;
+}
+
+// Early out of shadow_area: LIM_AREA_SHADOW_SEARCH taps over PCSS's blocker-search
+// region (pcss_blockers); a tap is a blocker only where all 4 texels of its gather are
+// nearer than the tap (at grazing incidence the receiver's own surface differs by more
+// than the normal offset between neighbouring texels, and would otherwise "block"
+// every pixel). False: no blocker anywhere in the region, the receiver is fully lit.
+bool area_blocker_search(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) {
+    vec3 Lc = S.pos_range.xyz;
+    float range = S.pos_range.w;
+    vec3 ldir = (Lc - Pb) / max(dist, 1e-9);
+    float ndl = dot(N, ldir);
+    if (abs(ndl) < 0.05) ndl = ndl < 0.0 ? -0.05 : 0.05;
+    vec3 A, B;
+    light_shadow_axes(L, ldir, A, B);
+    float cap = LIM_PCSS_MAX_TEXELS * S.params.y * dist;
+    float amax = max(length(A), length(B));
+    float zmin = max(S.params.x, 0.05 * dist);
+    float search = min((dist - zmin) / zmin, cap / max(amax, 1e-6));
+    float a = LIM_AREA_SHADOW_SEARCH_CONE * light_half_extent(L);
+    // Depth tolerance per metre of distance: texels at grazing incidence (1 / cos, up to
+    // 1 / LIM_AREA_SHADOW_SEARCH_COS) -- a blocker stands clear of the receiver's plane.
+    float tol = LIM_AREA_SHADOW_THICK_TEXELS * S.params.y / max(abs(dot(N, ldir)), LIM_AREA_SHADOW_SEARCH_COS);
+    // Tap 0 is the receiver itself (the centre's hard shadow: a blocker on the axis,
+    // however large, is seen there); taps 1.. a Vogel disk over the region.
+    for (int k = 0; k <= LIM_AREA_SHADOW_SEARCH; ++k) {
+        vec2 o2 = k == 0 ? vec2(0.0) : vogel(k - 1, LIM_AREA_SHADOW_SEARCH, rot) * search;
+        vec3 o = A * o2.x + B * o2.y;
+        vec3 X = Pb + o - ldir * (dot(o, N) / ndl);
+        vec2 tk;
+        if (!shadow_texel(S, X, tk)) continue;
+        vec4 g = textureGather(u_shadow_atlas, (floor(tk) + 1.0) * S.params.z, 0);
+        float rx = length(X - Lc);
+        float z = max(max(g.x, g.y), max(g.z, g.w));
+        // z = 1: nothing within the map's range there (a tap past the range is no blocker)
+        // ... and a surface at distance zr from the light towards the tap, which lies h
+        // off the axis receiver -> light centre (so the surface lies h zr / rx off it),
+        // meets the cone receiver -> light (radius a (D - zr) / D there; a: the light's
+        // half extent) only when zr (h D + a rx) <= a rx D.
+        float zr = z * range;
+        vec3 dx = X - Pb;
+        float hx = length(dx - ldir * dot(dx, ldir));
+        if (z < LIM_AREA_SHADOW_EMPTY_DEPTH && zr < rx - tol * rx && zr * (hx * dist + a * rx) <= a * rx * dist) return true;
+    }
+    return false;
+}
+
+// Visibility of area light L from the biased receiver Pb (normal N): the weighted
+// fraction of AREA_SHADOW_POINTS light points (R2 set shifted by u0) whose segments are
+// unoccluded; weights are each point's diffuse contribution cos_r (cos_e) / d^2, so
+// points below the receiver's horizon (or behind a one-sided emitter) do not count.
+float shadow_area(Light L, ShadowMap S, vec3 Pb, vec3 N, vec2 u0, float dist) {
+    vec3 C = S.pos_range.xyz;
+#if LIM_AREA_SHADOW_SEARCH > 0
+    if (!area_blocker_search(L, S, Pb, N, dist, u0.x * 6.2831853)) return 1.0;
+#endif
+    vec3 Z = L.axis_emit.xyz;
+    bool planar = L.area.z == AREA_RECT || L.area.z == AREA_DISK;
+    float vs = 0.0, ws = 0.0;
+    for (int k = 0; k < AREA_SHADOW_POINTS; ++k) {
+        vec2 u = r2_point(k, u0);
+        vec3 Lj = light_sample_point(L, C, Pb, u);
+        vec3 d = Lj - Pb;
+        float dd = max(dot(d, d), 1e-10);
+        vec3 w = d * inversesqrt(dd);
+        float wt = max(dot(N, w), 0.0) / dd;
+        if (planar) wt *= max(-dot(Z, w), 0.0);
+        if (wt <= 0.0) continue;
+        ws += wt;
+        float tj = 1.0 - fract(u0.y + 0.6180340 * float(k));
+        vs += wt * segment_visibility(L, S, Lj, Pb, tj);
+    }
+    return ws > 0.0 ? vs / ws : 1.0;
+}
+
 // Returns the RGB transmission mix(shadow:color, 1, visibility). soft: PCSS for lights
 // shaded as areas; false: one bilinear PCF gather for every light (STB's resampling
 // targets: an approximate visibility is all a target needs, at 1/24 of the taps).
-vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft) {
+vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft, vec2 u0) {
     int m = int(L.ies_shadow.z);
     if (m < 0) return vec3(1.0);
     ShadowMap S = shadow_maps[m];
@@ -149,19 +342,37 @@ vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft) {
     // Atlas texel coordinates; the 3 px border holds clamp / octahedral-mirror data.
     vec2 t = S.atlas.xy + uv * S.atlas.z - 0.5 + jitter;
     // Soft shadows where the light is shaded as an area (same size rule as area.glsl).
-    float v = soft && light_is_area(L, dist0)
-        ? shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853)
-        : shadow_tap(L, S, t, ref, dist);
+    float v;
+    if (!(soft && light_is_area(L, dist0))) v = shadow_tap(L, S, t, ref, dist);
+#if LIM_AREA_SHADOW_POINTS > 0
+    else v = shadow_area(L, S, Pb, N, u0, dist);
+#else
+    else v = shadow_pcss(L, S, Pb, N, dist, jitter.x * 6.2831853);   // comparison runs only
+#endif
     return mix(L.shadow_color.rgb, vec3(1.0), v);
 }
 
+// Shift of the area-shadow point set (r2_point) for this pixel: a per-pixel hash, so a
+// penumbra's quantisation into AREA_SHADOW_POINTS levels is fine noise, not bands; with
+// AREA_SHADOW_PER_FRAME (STB's term pass, fewer points) also per frame, so accumulated
+// frames converge to the whole light's visibility.
+vec2 area_shadow_shift() {
+    uvec2 q = uvec2(gl_FragCoord.xy);
+    uint h = q.x * 1973u + q.y * 9277u + 0x68e31da4u;
+#ifdef AREA_SHADOW_PER_FRAME
+    h += uint(u_clip.z) * 26699u;
+#endif
+    h ^= h >> 15; h *= 0x2c1b3c6du; h ^= h >> 12; h *= 0x297a2d39u; h ^= h >> 15;
+    return vec2(float(h & 0xffffu), float(h >> 16)) / 65536.0;
+}
+
 vec3 local_shadow_jittered(Light L, vec3 P, vec3 N, vec2 jitter) {
-    return local_shadow_impl(L, P, N, jitter, true);
+    return local_shadow_impl(L, P, N, jitter, true, area_shadow_shift());
 }
 
 // Hard (single-gather) visibility for resampling targets.
 vec3 local_shadow_hard(Light L, vec3 P, vec3 N) {
-    return local_shadow_impl(L, P, N, vec2(0.0), false);
+    return local_shadow_impl(L, P, N, vec2(0.0), false, vec2(0.0));
 }
 
 vec3 local_shadow(Light L, vec3 P, vec3 N) {
