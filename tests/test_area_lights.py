@@ -217,17 +217,10 @@ def test_point_and_spot_against_mitsuba(kind):
 def _floor_points(stage, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
     """World points (h, w, 3) where each pixel centre's camera ray meets the floor (y = 0),
     and the rays' origin; from the stage's camera (pxr's frustum, not our renderer)."""
-    from pxr import Gf, Usd, UsdGeom
+    from pxr import Usd, UsdGeom
 
     cam = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default())
-    fr = cam.frustum
-    pts = np.zeros((h, w, 3))
-    for j in range(h):
-        for i in range(w):
-            r = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / w - 1, 1 - 2 * (j + 0.5) / h))
-            o, d = np.array(r.startPoint), np.array(r.direction)
-            pts[j, i] = o - o[1] / d[1] * d
-    return pts, np.array(fr.position)
+    return plane_points(stage, w, h), np.array(cam.frustum.position)
 
 
 def _segments_hit_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -76,18 +76,39 @@ bool shadow_texel(ShadowMap S, vec3 X, out vec2 t) {
 // each compared with its own distance to the light (no receiver-plane bias; octahedral
 // seams need no care). The blocker search uses z = max(near, D / 20); the filter the
 // mean blocker distance. Both are capped at LIM_PCSS_MAX_TEXELS map texels.
-float shadow_pcss(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) {
-    vec3 Lc = S.pos_range.xyz;
-    float range = S.pos_range.w;
-    vec3 ldir = (Lc - Pb) / max(dist, 1e-9);
-    float ndl = dot(N, ldir);
-    if (abs(ndl) < 0.05) ndl = ndl < 0.0 ? -0.05 : 0.05;
-    vec3 A, B;
-    light_shadow_axes(L, ldir, A, B);
-    float cap = LIM_PCSS_MAX_TEXELS * S.params.y * dist;   // world size of the cap
-    float amax = max(length(A), length(B));
+// The blocker-search region shared by PCSS and the area lights' early out: the light's
+// shape axes A, B seen from the receiver, the receiver plane's slope along the light
+// direction, the kernel cap and the search scale (z = max(near, D / 20)).
+struct BlockerRegion {
+    vec3 Lc;       // map's light position
+    float range;   // map's range (m)
+    vec3 ldir;     // receiver -> light centre (unit)
+    float ndl;     // N . ldir, kept >= 0.05 in magnitude
+    vec3 A, B;     // light half axes (world)
+    float cap;     // world size of LIM_PCSS_MAX_TEXELS at the receiver
+    float amax;    // the larger half axis
+    float search;  // search radius (x the axes)
+};
+
+BlockerRegion blocker_region(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist) {
+    BlockerRegion r;
+    r.Lc = S.pos_range.xyz;
+    r.range = S.pos_range.w;
+    r.ldir = (r.Lc - Pb) / max(dist, 1e-9);
+    r.ndl = dot(N, r.ldir);
+    if (abs(r.ndl) < 0.05) r.ndl = r.ndl < 0.0 ? -0.05 : 0.05;
+    light_shadow_axes(L, r.ldir, r.A, r.B);
+    r.cap = LIM_PCSS_MAX_TEXELS * S.params.y * dist;
+    r.amax = max(length(r.A), length(r.B));
     float zmin = max(S.params.x, 0.05 * dist);
-    float search = min((dist - zmin) / zmin, cap / max(amax, 1e-6));
+    r.search = min((dist - zmin) / zmin, r.cap / max(r.amax, 1e-6));
+    return r;
+}
+
+float shadow_pcss(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) {
+    BlockerRegion R = blocker_region(L, S, Pb, N, dist);
+    vec3 Lc = R.Lc, ldir = R.ldir, A = R.A, B = R.B;
+    float range = R.range, ndl = R.ndl, cap = R.cap, amax = R.amax, search = R.search;
     float zsum = 0.0, zn = 0.0;
     for (int k = 0; k < PCSS_SEARCH_TAPS; ++k) {
         vec2 o2 = vogel(k, PCSS_SEARCH_TAPS, rot) * search;
@@ -241,17 +262,9 @@ float segment_visibility(Light L, ShadowMap S, vec3 A, vec3 B, float tj) {
 // than the normal offset between neighbouring texels, and would otherwise "block"
 // every pixel). False: no blocker anywhere in the region, the receiver is fully lit.
 bool area_blocker_search(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, float rot) {
-    vec3 Lc = S.pos_range.xyz;
-    float range = S.pos_range.w;
-    vec3 ldir = (Lc - Pb) / max(dist, 1e-9);
-    float ndl = dot(N, ldir);
-    if (abs(ndl) < 0.05) ndl = ndl < 0.0 ? -0.05 : 0.05;
-    vec3 A, B;
-    light_shadow_axes(L, ldir, A, B);
-    float cap = LIM_PCSS_MAX_TEXELS * S.params.y * dist;
-    float amax = max(length(A), length(B));
-    float zmin = max(S.params.x, 0.05 * dist);
-    float search = min((dist - zmin) / zmin, cap / max(amax, 1e-6));
+    BlockerRegion R = blocker_region(L, S, Pb, N, dist);
+    vec3 Lc = R.Lc, ldir = R.ldir, A = R.A, B = R.B;
+    float range = R.range, ndl = R.ndl, search = R.search;
     float a = LIM_AREA_SHADOW_SEARCH_CONE * light_half_extent(L);
     // Depth tolerance per metre of distance: texels at grazing incidence (1 / cos, up to
     // 1 / LIM_AREA_SHADOW_SEARCH_COS) -- a blocker stands clear of the receiver's plane.
