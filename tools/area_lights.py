@@ -134,17 +134,22 @@ def accuracy(args: argparse.Namespace) -> None:
                 _png(out / f"{kind}{suffix}.png", row)
 
 
+def _half_d(V: np.ndarray, L: np.ndarray, a2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Half vectors H of V and the directions L (floor normal +Y) and GGX D(N.H)."""
+    H = V + L
+    H = H / np.linalg.norm(H, axis=-1, keepdims=True)
+    noh = np.maximum(H[..., 1], 0)
+    d = noh * noh * (a2 - 1) + 1
+    return H, a2 / (math.pi * d * d)
+
+
 def _ggx(V: np.ndarray, L: np.ndarray, a: float, f0: float) -> np.ndarray:
     """brdf.glsl's GGX x cos (floor normal +Y), numpy."""
     nol = L[..., 1]
     nov = max(float(V[1]), 1e-4)
-    H = V + L
-    H = H / np.linalg.norm(H, axis=-1, keepdims=True)
-    noh = np.maximum(H[..., 1], 0)
-    voh = np.maximum((V * H).sum(-1), 0)
     a2 = a * a
-    d = noh * noh * (a2 - 1) + 1
-    D = a2 / (math.pi * d * d)
+    H, D = _half_d(V, L, a2)
+    voh = np.maximum((V * H).sum(-1), 0)
     gv = nol * math.sqrt(nov * nov * (1 - a2) + a2)
     gl = nov * np.sqrt(np.maximum(nol * nol * (1 - a2) + a2, 0))
     F = f0 + (1 - f0) * (1 - voh) ** 5
@@ -264,12 +269,8 @@ def _ggx_sep(V: np.ndarray, L: np.ndarray, a: float) -> np.ndarray:
     """GGX x cos with Mitsuba's separable Smith G1(V) G1(L) and Fresnel 1 (floor +Y)."""
     nol = L[..., 1]
     nov = max(float(V[1]), 1e-4)
-    H = V + L
-    H = H / np.linalg.norm(H, axis=-1, keepdims=True)
-    noh = np.maximum(H[..., 1], 0)
     a2 = a * a
-    d = noh * noh * (a2 - 1) + 1
-    D = a2 / (math.pi * d * d)
+    _, D = _half_d(V, L, a2)
 
     def g1(c: np.ndarray | float) -> np.ndarray:
         c = np.maximum(c, 1e-6)

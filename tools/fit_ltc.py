@@ -57,21 +57,28 @@ def _grid(n: int) -> tuple[np.ndarray, np.ndarray]:
     return u1.ravel(), u2.ravel()
 
 
+def ggx_d(noh: np.ndarray, a2: np.ndarray) -> np.ndarray:
+    """GGX normal distribution D(N.H) for alpha^2 ``a2``."""
+    d = noh * noh * (a2 - 1.0) + 1.0
+    return a2 / (math.pi * d * d)
+
+
+def ggx_cos(noh: np.ndarray, nov: np.ndarray, nol: np.ndarray, a2: np.ndarray) -> np.ndarray:
+    """brdf.glsl's GGX specular x cos with F = 1 from the cosines: D x height-correlated
+    Smith visibility x N.L (0 below the horizon). ``nov`` already clamped to COS_MIN."""
+    nl = np.maximum(nol, 0.0)
+    gv = nl * np.sqrt(nov * nov * (1.0 - a2) + a2)
+    gl = nov * np.sqrt(nl * nl * (1.0 - a2) + a2)
+    return np.where(nol > 0.0, ggx_d(noh, a2) * 0.5 / np.maximum(gv + gl, 1e-8) * nl, 0.0)
+
+
 def lobe(V: np.ndarray, L: np.ndarray, a: np.ndarray) -> np.ndarray:
     """brdf.glsl's GGX specular x cos with F = 1. V (B, 3), L (B, S, 3), a (B,)."""
-    nol = L[..., 2]
     nov = np.maximum(V[:, None, 2], COS_MIN)
     H = V[:, None, :] + L
     H = H / np.maximum(np.linalg.norm(H, axis=-1, keepdims=True), 1e-20)
     noh = np.maximum(H[..., 2], 0.0)
-    a2 = (a * a)[:, None]
-    d = noh * noh * (a2 - 1.0) + 1.0
-    D = a2 / (math.pi * d * d)
-    nl = np.maximum(nol, 0.0)
-    gv = nl * np.sqrt(nov * nov * (1.0 - a2) + a2)
-    gl = nov * np.sqrt(nl * nl * (1.0 - a2) + a2)
-    vis = 0.5 / np.maximum(gv + gl, 1e-8)
-    return np.where(nol > 0.0, D * vis * nl, 0.0)
+    return ggx_cos(noh, nov, L[..., 2], (a * a)[:, None])
 
 
 def sample_lobe(V: np.ndarray, a: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -84,9 +91,7 @@ def sample_lobe(V: np.ndarray, a: np.ndarray, n: int) -> tuple[np.ndarray, np.nd
     H = np.stack([st * np.cos(ph), st * np.sin(ph), ct], -1)
     voh = (V[:, None, :] * H).sum(-1)
     L = 2.0 * voh[..., None] * H - V[:, None, :]
-    d = ct * ct * (a2 - 1.0) + 1.0
-    D = a2 / (math.pi * d * d)
-    pdf = D * ct / np.maximum(4.0 * np.abs(voh), 1e-12)
+    pdf = ggx_d(ct, a2) * ct / np.maximum(4.0 * np.abs(voh), 1e-12)
     return L, pdf
 
 
@@ -153,13 +158,8 @@ def _lobe_xyz(V: np.ndarray, x: np.ndarray, y: np.ndarray, z: np.ndarray, a: np.
     noh = np.maximum(hz / hn, 0.0)
     voh = np.abs((vx * hx + vz * hz) / hn)
     a2 = (a * a)[:, None]
-    d = noh * noh * (a2 - 1.0) + 1.0
-    D = a2 / (math.pi * d * d)
-    nl = np.maximum(z, 0.0)
-    gv = nl * np.sqrt(vz * vz * (1.0 - a2) + a2)
-    gl = vz * np.sqrt(nl * nl * (1.0 - a2) + a2)
-    f = np.where(z > 0.0, D * 0.5 / np.maximum(gv + gl, 1e-8) * nl, 0.0)
-    return f, D * noh / np.maximum(4.0 * voh, 1e-12)
+    f = ggx_cos(noh, vz, z, a2)
+    return f, ggx_d(noh, a2) * noh / np.maximum(4.0 * voh, 1e-12)
 
 
 class Problem:
