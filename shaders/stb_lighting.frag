@@ -23,24 +23,18 @@ layout(location = 0) out vec4 o_color;
 
 #ifdef STB_RIS_SELECT
 #include "common/rng.glsl"
+#include "common/stb_target.glsl"
 uniform float u_eps;  // as the small-tile target's: keeps the target positive in shadow
-// Cheap per-pixel resampling target of a light at surface s (luminance, unshadowed,
-// without the term's cone/IES part): the small tile's target at one point -- area
-// irradiance x diffuse + Blinn-Phong specular from the centre, + eps x the facing
-// illuminance so it stays > 0 wherever the light reaches the pixel.
+// Cheap per-pixel resampling target of a light at surface s: the small tile's target
+// (common/stb_target.glsl) at this one point, without the cone/IES part (the term
+// holds it), + eps x the facing illuminance so it stays > 0 wherever the light
+// reaches the pixel.
 float ris_target(Light L, Surface s) {
-    vec3 Ldir; float dist;
-    float f = light_falloff(L, s.P, Ldir, dist);
-    if (f <= 0.0) return 0.0;
-    float Ev = luminance(L.intensity.rgb * light_shape_rgb(L, -Ldir)) * f;
-    float Ea = light_target_irradiance(L, s.P, s.N, Ldir, dist, Ev);
-    float kd = luminance(s.diffuse), ks = luminance(s.f0);
     float a = max(s.alpha, LIM_GGX_ALPHA_MIN);
     float spec_n = max(2.0 / (a * a) - 2.0, 1.0);
-    float NoL = max(dot(s.N, Ldir), 0.0);
-    float NoH = max(dot(s.N, normalize(s.V + Ldir)), 0.0);
-    float spec = ks * (spec_n + 2.0) / (2.0 * PI) * pow(NoH, spec_n);
-    return kd / PI * Ea + Ev * spec * NoL + Ev * (kd / PI + spec) * u_eps;
+    vec2 t = stb_point_target(L, s.P, s.N, s.V, luminance(s.diffuse), luminance(s.f0), spec_n,
+                              (spec_n + 2.0) / (2.0 * PI), false);
+    return t.x + t.y * u_eps;
 }
 #endif
 

@@ -9,6 +9,7 @@
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
 #include "common/tiles.glsl"
+#include "common/stb_target.glsl"
 
 uniform usampler2D u_bigtile;    // r32ui reservoirs, u_block texels per big tile
 uniform ivec2 u_block;
@@ -92,19 +93,10 @@ void main() {
         Light L = lights[li];
         float ph = 0.0;
         for (int k = 0; k < npts; ++k) {
-            vec3 Ldir; float dist;
-            float f = light_falloff(L, pts[k].P, Ldir, dist);
-            if (f <= 0.0) continue;
-            float Ev = luminance(L.intensity.rgb * light_shape(L, -Ldir)) * f;
-            float Ea = light_target_irradiance(L, pts[k].P, pts[k].N, Ldir, dist, Ev);
-            float NoL = max(dot(pts[k].N, Ldir), 0.0);
-            vec3 H = normalize(pts[k].V + Ldir);
-            float NoH = max(dot(pts[k].N, H), 0.0);
-            float fv = kd / PI + ks * spec_norm * pow(NoH, spec_n);
+            vec2 t = stb_point_target(L, pts[k].P, pts[k].N, pts[k].V, kd, ks, spec_n, spec_norm, true);
+            if (t.x <= 0.0 && t.y <= 0.0) continue;  // out of range: no shadow lookup
             float V = luminance(local_shadow_hard(L, pts[k].P, pts[k].N));
-            // Area irradiance for the diffuse part (issue 20): positive wherever the
-            // light reaches the point, so Ev x eps keeps the target positive there.
-            ph += V * (kd / PI * Ea + Ev * ks * spec_norm * pow(NoH, spec_n) * NoL) + Ev * fv * u_eps;
+            ph += V * t.x + t.y * u_eps;
         }
         ph /= float(npts);
         ph_all[slot] = ph;
