@@ -19,7 +19,7 @@ uniform sampler2D u_pixel_terms;
 #endif
 #endif
 
-layout(location = 0) out vec4 o_color;
+#include "common/lighting_out.glsl"
 
 #ifdef STB_RIS_SELECT
 #include "common/rng.glsl"
@@ -43,8 +43,7 @@ void main() {
     Surface s;
     vec3 emission = texelFetch(g_emission, px, 0).rgb;
     if (!read_surface(px, s)) {
-        o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
-            ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+        write_background(px);
         return;
     }
     vec3 c = sun_and_ambient(s);
@@ -150,5 +149,5 @@ void main() {
         c += (d * L.misc.z + sp * L.misc.w) * term * W;
     }
     c += emission;
-    o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
+    write_lighting(px, s, c);
 }

@@ -1,5 +1,5 @@
-// Temporal reuse for a moving camera (--temporal taa), the main full-screen pass
-// (after temporal_demod.frag):
+// Temporal reuse for a moving camera (--temporal taa), one full-screen pass after the
+// lighting pass, which wrote its demodulated input (common/lighting_out.glsl):
 //  * reprojection: the previous position of the surface under this pixel from the
 //    G-buffer's motion vectors (camera motion and animated transforms) minus this
 //    frame's subpixel jitter (history lives on the unjittered pixel grid);
@@ -25,15 +25,15 @@
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
 // (disocclusion: same_surface, neighbour_surface), history_catmull_rom,
 // clip_towards_mean, blend. Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
-// reads lighting / albedo + depth from one texture written by temporal_demod.frag
-// (one fetch a tap instead of four), the remodulation its albedo + alpha texture,
+// reads lighting / albedo + depth from one texture the lighting pass wrote (one fetch
+// a tap instead of four), the remodulation its albedo + alpha texture,
 // and the edge test fetches each neighbour's depth and normal once for all 4
 // footprint texels.
 #include "common/frame.glsl"
 #include "common/packing.glsl"
 
-uniform sampler2D u_demod;     // lighting / albedo (rgb), linear depth (m) (temporal_demod.frag)
-uniform sampler2D u_albedo;    // demodulation albedo (rgb), lighting alpha (temporal_demod.frag)
+uniform sampler2D u_demod;     // lighting / albedo (rgb), linear depth (m) (lighting pass)
+uniform sampler2D u_albedo;    // demodulation albedo (rgb), lighting alpha (lighting pass)
 uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)

@@ -23,15 +23,14 @@ int depth_slice(float d) {
 }
 #endif
 
-layout(location = 0) out vec4 o_color;
+#include "common/lighting_out.glsl"
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
     vec3 emission = texelFetch(g_emission, px, 0).rgb;
     if (!read_surface(px, s)) {
-        o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
-            ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+        write_background(px);
         return;
     }
     vec3 c = sun_and_ambient(s);
@@ -47,5 +46,5 @@ void main() {
         c += light_radiance(lights[i], s);
     }
     c += emission;
-    o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
+    write_lighting(px, s, c);
 }

@@ -80,7 +80,7 @@ def build_passes(
     else:
         atlas, uniforms = keep.shadow_atlas, keep.frame_uniforms
         atlas.enabled = local_shadows
-    lighting = LightingTask(delegate, method)
+    lighting = LightingTask(delegate, method, taa_inputs=settings.temporal == "taa")
     accumulate = AccumulateTask(delegate)
     temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
     aov = AovOutputTask(delegate, method)

@@ -65,6 +65,11 @@ READS: tuple[Resource, ...] = (
 
 Warn = Callable[[str], None]
 
+#: What the lighting pass also writes for the temporal pass (``--temporal taa``;
+#: ``shaders/common/lighting_out.glsl``): lighting / albedo + linear depth (m), and
+#: albedo + the lighting's alpha.
+TAA_INPUTS: tuple[Tex, ...] = (Tex("taa_demod", "rgba32f"), Tex("taa_albedo", "rgba32f"))
+
 
 class LightingMethod:
     name: ClassVar[str] = "base"
@@ -76,6 +81,8 @@ class LightingMethod:
     uses_local_lights: ClassVar[bool] = True
     #: Min/max depth pyramid level the method samples (0: none); may depend on options.
     hiz_level: int = 0
+    #: The lighting pass also writes ``TAA_INPUTS`` (set by the lighting task).
+    taa_inputs: bool = False
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -174,8 +181,22 @@ class LightingMethod:
     def execute(self, frame: FrameContext) -> None:
         raise NotImplementedError
 
+    def lighting_defines(
+        self, frame: FrameContext, defines: dict[str, object] | None = None
+    ) -> dict[str, object]:
+        """Defines of a lighting shader (one that includes ``common/lighting_out.glsl``):
+        ``defines`` (default: :meth:`scene_defines`), with its taa outputs switched on
+        when the temporal pass needs them."""
+        d = self.scene_defines(frame) if defines is None else defines
+        return {**d, "TAA_DEMOD_OUT": True} if self.taa_inputs else d
+
     def fullscreen_pass(self, frame: FrameContext, prog: moderngl.Program, target: str) -> None:
-        fbo = frame.buffers.framebuffer("fb_" + target, [target])
+        """Draw ``prog`` into ``target``; the ``lighting`` target also into
+        ``TAA_INPUTS`` when the temporal pass needs them."""
+        names = [target]
+        if target == "lighting" and self.taa_inputs:
+            names += [t.name for t in TAA_INPUTS]
+        fbo = frame.buffers.framebuffer("fb_" + "_".join(names), names)
         draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
 
     def release(self) -> None:
@@ -186,4 +207,4 @@ def program(frame: FrameContext, frag: str, defines: dict[str, object]) -> moder
     return shader_library(frame.ctx).program("fullscreen.vert", frag, defines)
 
 
-__all__ = ["LightingMethod", "program", "set_uniform"]
+__all__ = ["TAA_INPUTS", "LightingMethod", "program", "set_uniform"]

@@ -194,7 +194,7 @@ class ClusteredLighting(LightingMethod):
             headers, lists = self._assign_gpu(frame, grid, self.pool)
 
         with frame.timings_scope("clustered_shade"):
-            prog = program(frame, "clustered_lighting.frag", self.scene_defines(frame))
+            prog = program(frame, "clustered_lighting.frag", self.lighting_defines(frame))
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)

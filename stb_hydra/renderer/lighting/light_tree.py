@@ -138,7 +138,7 @@ class LightTreeLighting(LightingMethod):
             nodes = self.pool.upload("nodes", t.gpu_nodes(), BIND_LISTS)
             lights = self.pool.upload("lights", t.lights, BIND_EXTRA)
         with frame.timings_scope("lighttree_shade"):
-            prog = program(frame, "lighttree_lighting.frag", self.scene_defines(frame))
+            prog = program(frame, "lighttree_lighting.frag", self.lighting_defines(frame))
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             nodes.bind_to_storage_buffer(BIND_LISTS)

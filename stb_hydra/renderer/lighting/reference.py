@@ -20,6 +20,6 @@ class ReferenceLighting(LightingMethod):
         defines = self.scene_defines(frame)
         if frame.light_count:
             defines["LOCAL_LIGHTS"] = True
-        prog = program(frame, "lighting_direct.frag", defines)
+        prog = program(frame, "lighting_direct.frag", self.lighting_defines(frame, defines))
         self.bind_common(frame, prog)
         self.fullscreen_pass(frame, prog, "lighting")

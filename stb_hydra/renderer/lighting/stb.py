@@ -294,7 +294,7 @@ class StbLighting(LightingMethod):
     def execute(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
             # No local lights: the sun-only path (compiled without STB passes).
-            prog = program(frame, "lighting_direct.frag", self.scene_defines(frame))
+            prog = program(frame, "lighting_direct.frag", self.lighting_defines(frame))
             self.bind_common(frame, prog)
             self.fullscreen_pass(frame, prog, "lighting")
             return
@@ -356,7 +356,7 @@ class StbLighting(LightingMethod):
             frame.ctx.memory_barrier()
 
         # 4. lighting
-        prog = program(frame, "stb_lighting.frag", defines)
+        prog = program(frame, "stb_lighting.frag", self.lighting_defines(frame, defines))
         self._common_uniforms(frame, prog)
         unit = self.bind_common(frame, prog)
         unit = self._bind(frame, prog, unit, "u_smalltile", small)

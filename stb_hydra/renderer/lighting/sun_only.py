@@ -15,6 +15,6 @@ class SunOnlyLighting(LightingMethod):
     uses_local_lights = False
 
     def execute(self, frame: FrameContext) -> None:
-        prog = program(frame, "lighting_direct.frag", self.scene_defines(frame))
+        prog = program(frame, "lighting_direct.frag", self.lighting_defines(frame))
         self.bind_common(frame, prog)
         self.fullscreen_pass(frame, prog, "lighting")

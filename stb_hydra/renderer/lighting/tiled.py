@@ -105,7 +105,7 @@ class SSBOPool:
 
 def shade_direct(method: LightingMethod, frame: FrameContext) -> None:
     """No local lights in view: sun + ambient only (the reference's light-less path)."""
-    prog = program(frame, "lighting_direct.frag", method.scene_defines(frame))
+    prog = program(frame, "lighting_direct.frag", method.lighting_defines(frame))
     method.bind_common(frame, prog)
     method.fullscreen_pass(frame, prog, "lighting")
 
@@ -203,7 +203,7 @@ class TiledLighting(LightingMethod):
             ctx.memory_barrier()
 
         with frame.timings_scope("tiled_shade"):
-            prog = program(frame, "tiled_lighting.frag", self.scene_defines(frame))
+            prog = program(frame, "tiled_lighting.frag", self.lighting_defines(frame))
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)

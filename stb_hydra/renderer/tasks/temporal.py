@@ -4,9 +4,10 @@ Reprojects last frame's history with the G-buffer's motion vectors (camera motio
 and animated transforms), rejects it where the surface was not visible (previous
 depth and normal) and clips it against the statistics of a depth-weighted
 neighbourhood of albedo-demodulated lighting, then blends 1/n with a per-pixel
-history length n (``shaders/temporal.frag`` says how; ``temporal_demod.frag`` first
-writes this frame's demodulated lighting + depth, ``taa_demod``, so the
-neighbourhood is one fetch a tap). History lives in
+history length n (``shaders/temporal.frag`` says how; the lighting pass writes this
+frame's demodulated lighting + depth, ``taa_demod``, and albedo, ``taa_albedo``,
+beside its radiance: ``lighting.base.TAA_INPUTS``, so the neighbourhood is one fetch
+a tap and no pass of its own re-reads the G-buffer). History lives in
 ping-pong buffers (``taa_hist_*``: demodulated lighting + n; ``taa_geo_*``: depth +
 normal) and survives across frames of an engine; it is dropped on the first frame,
 a viewport resize, a camera cut (a large view change: :func:`is_camera_cut`) and a
@@ -31,6 +32,7 @@ from ..frame import FrameContext
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
 from ..graph import Imported, Rec, Tex
+from ..lighting.base import TAA_INPUTS
 from ..records import FrameBlock, SceneColor
 from .base import Pass
 
@@ -42,10 +44,9 @@ HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
-#: Lighting / albedo + linear depth; albedo + lighting alpha of this frame
-#: (``temporal_demod.frag``).
-DEMOD = "taa_demod"
-ALBEDO = "taa_albedo"
+#: Lighting / albedo + linear depth; albedo + lighting alpha of this frame (written
+#: by the lighting pass, ``shaders/common/lighting_out.glsl``).
+DEMOD, ALBEDO = (t.name for t in TAA_INPUTS)
 
 #: History length cap (frames) of a moving / a still pixel (its surface moved by
 #: less than half a pixel): the noise falls like a 1/n average up to this many
@@ -160,12 +161,9 @@ def is_camera_cut(prev: ViewSetup, cur: ViewSetup, scene_diagonal: float) -> boo
 class TemporalTask(Pass):
     name = "temporal"
     reads = (
-        Tex("lighting", "rgba16f"),
-        Tex("g_depth", "r32f"),
+        *TAA_INPUTS,
         Tex("g_normal", "rg16f"),
         Tex("g_motion", "rg16f"),
-        Tex("g_base_rough", "rgba16f"),
-        Tex("g_f0_metal", "rgba16f"),
         Rec(SceneColor),
         Rec(FrameBlock),
         Imported("light_table"),
@@ -173,8 +171,6 @@ class TemporalTask(Pass):
     writes = (
         Rec(SceneColor),
         Tex(OUTPUT, "rgba16f"),
-        Tex(DEMOD, "rgba32f"),
-        Tex(ALBEDO, "rgba32f"),
         *(Tex(n, "rgba32f") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in GEOMETRY),
     )
@@ -240,19 +236,7 @@ class TemporalTask(Pass):
         tex = bufs.textures
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
-        lib = shader_library(ctx)
-        demod = lib.program("fullscreen.vert", "temporal_demod.frag")
-        demod_units = (
-            ("u_current", "lighting"),
-            ("u_depth", "g_depth"),
-            ("u_base", "g_base_rough"),
-            ("u_f0", "g_f0_metal"),
-        )
-        for unit, (uniform, name) in enumerate(demod_units):
-            tex[name].use(unit)
-            set_uniform(demod, uniform, unit)
-        draw_fullscreen(ctx, demod, bufs.framebuffer("fb_taa_demod", [DEMOD, ALBEDO]), bufs.size)
-        prog = lib.program("fullscreen.vert", "temporal.frag")
+        prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag")
         units = (
             ("u_demod", DEMOD),
             ("u_albedo", ALBEDO),
