@@ -18,8 +18,10 @@
 //    of single noisy pixels: a lone pixel that missed a light does not collapse the
 //    box), clip towards the mean (not a per-channel clamp);
 //  * blending: 1/n with a per-pixel history length n (alpha channel) up to
-//    u_max_len (longer, with a wider box, where the surface has not moved), in scene-linear units (an exposure change scales history, current
-//    and box alike, so the blend does not depend on the exposure);
+//    u_max_len (longer, with a wider box, where the surface has not moved); where it
+//    moves, the new sample is the neighbourhood mean (u_cur_weight), so the camera's
+//    motion does not show as flicker; in scene-linear units (an exposure change scales
+//    history, current and box alike, so the blend does not depend on the exposure);
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
@@ -43,6 +45,7 @@ uniform vec2 u_jitter;         // this frame's jitter (px, image content shift)
 uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
+uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
 // Lights that changed a lot this frame: within a sphere (centre, radius: its
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
@@ -119,6 +122,7 @@ struct Reprojection {
     float prev_d;   // this surface's depth in the previous view (m)
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
+    float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
 };
 
 // Reprojection (unjittered previous pixel position), box size and history cap. A
@@ -133,6 +137,7 @@ Reprojection reproject(ivec2 ip, float d) {
     float still = clamp(1.0 - 2.0 * length(mv), 0.0, 1.0);
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
+    r.cur_w = mix(u_cur_weight, 1.0, still);
     if (d > 0.0) {
         vec3 world = world_pos_from_depth(gl_FragCoord.xy, d);
         r.prev_d = max(-(u_prev_view * vec4(world, 1.0)).z, 1e-6);
@@ -259,9 +264,12 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
     return fp;
 }
 
-// History fix: a pixel with a short history (disoccluded, or capped by a light
-// change) takes the neighbourhood mean instead of its own noisy sample for its
-// first frames (full weight at n = 1, none from n = 5 on). Returns the demodulated
+// The new sample blended into the history: the neighbourhood mean instead of the
+// pixel's own noisy sample for a short history (disoccluded, or capped by a light
+// change: full weight at n = 1, none from n = 5 on), and for a moving pixel always
+// in part (r.cur_w: the innovation each frame adds is then the 13-tap mean's noise,
+// not one pixel's, so the image flickers less while the camera moves; a still pixel
+// keeps its own samples and converges to its own value). Returns the demodulated
 // result and its history length; tm2: the luma second moment to keep.
 vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2) {
     vec3 result = m1;
@@ -280,7 +288,7 @@ vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out floa
         vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
         len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
-        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, 1.0)), 1.0 / len);
+        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, r.cur_w)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);
     }
     return vec4(result, len);
