@@ -224,6 +224,21 @@ SHADOW_UPGRADE_RETRY_FRAMES = 30
 #: Window (frames) of the staleness statistics (10 s at 60 Hz).
 SHADOW_STATS_WINDOW_FRAMES = 600
 
+# --- taa spatial filter (RenderSettings.taa_filter; shaders/taa_filter.frag) -------------
+#: Most a-trous levels (level k's taps are 2^k px apart: 5 levels reach 64 px).
+TAA_FILTER_LEVELS_MAX = 5
+#: Luminance stop (standard deviations of the temporal spread of the two pixels'
+#: frames). Measured on the 320x180 60-frame courtyard orbit (frames 8+, GPU pass;
+#: taa alone: HDR-FLIP 0.179, instability 1.68x): 1 level 0.174 / 1.30x, 2 levels
+#: 0.174 / 1.13x, 3 levels 0.186 / 1.07x (numpy: a stop of 1 on the variance of the
+#: mean, / n, 3 levels 0.173 / 1.26x). An oracle that removed all error below 4 px
+#: (16 px) would only reach 0.133 (0.118): the error left is at the scale of the
+#: tiles. 256-light chess orbit (pivot 1.07; taa 0.314 / 1.90x): 1 level 0.309 /
+#: 1.48x, 2 levels 0.306 / 1.25x (oracle below 4 / 16 px: 0.217 / 0.144). Cost of
+#: 2 levels on llvmpipe, 745x360: ~3x the temporal pass (27 % of the frame), so it
+#: is off by default.
+TAA_FILTER_SIGMA_L = 4.0
+
 # --- Misc -------------------------------------------------------------------------------
 
 #: Tiny positive PDF floor keeps every sampling weight finite (no 0/0).

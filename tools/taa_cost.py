@@ -17,8 +17,17 @@ from stb_hydra.renderer.frame import RenderSettings
 _NOT_PASSES = ("sync", "commit", "prepare")
 
 
-def frame_ms(stage: str, w: int, h: int, temporal: str, frames: int, warmup: int):
-    s = RenderSettings(width=w, height=h, lighting="stb", temporal=temporal, profile=True)
+def frame_ms(
+    stage: str, w: int, h: int, temporal: str, frames: int, warmup: int, taa_filter: int = 0
+):
+    s = RenderSettings(
+        width=w,
+        height=h,
+        lighting="stb",
+        temporal=temporal,
+        profile=True,
+        taa_filter=taa_filter if temporal == "taa" else 0,
+    )
     eng = Engine(stage, s)
     try:
         for _ in range(frames):
@@ -37,9 +46,12 @@ def main(argv=None) -> int:
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--frames", type=int, default=24)
     ap.add_argument("--warmup", type=int, default=6)
+    ap.add_argument("--taa-filter", type=int, default=0, help="a-trous levels of taa's filter")
     a = ap.parse_args(argv)
     for temporal in ("taa", "accumulate"):
-        _med, passes = frame_ms(a.stage, a.width, a.height, temporal, a.frames, a.warmup)
+        _med, passes = frame_ms(
+            a.stage, a.width, a.height, temporal, a.frames, a.warmup, a.taa_filter
+        )
         total = sum(passes.values())
         key = "temporal" if temporal == "taa" else "accumulate"
         share = passes.get(key, 0.0) / max(total, 1e-9)
@@ -47,6 +59,9 @@ def main(argv=None) -> int:
             f"{temporal:10s} passes {total:7.1f} ms  {key} {passes.get(key, 0.0):6.2f} ms "
             f"({100 * share:.1f} %)  lighting {passes.get('lighting', 0.0):6.1f} ms"
         )
+        if temporal == "taa" and a.taa_filter:
+            tf = passes.get("taa_filter", 0.0)
+            print(f"taa_filter ({a.taa_filter} levels) {tf:6.2f} ms ({100 * tf / total:.1f} %)")
     return 0
 
 

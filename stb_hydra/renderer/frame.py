@@ -64,6 +64,9 @@ class RenderSettings:
     #: jitter: a moving camera or animated objects; ``tasks/temporal.py``) or "off"
     #: (every frame on its own).
     temporal: str = "accumulate"
+    #: taa only: a-trous levels of the edge-aware spatial filter of its output
+    #: (``tasks/taa_filter.py``; 0 = off, at most ``limits.TAA_FILTER_LEVELS_MAX``).
+    taa_filter: int = 0
     #: Extra uniform ambient radiance (nits) added to the dome, e.g. for thumbnails.
     ambient: float = 0.0
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).
@@ -75,6 +78,11 @@ class RenderSettings:
         if self.temporal not in TEMPORAL_MODES:
             raise ValueError(
                 f"temporal must be one of {', '.join(TEMPORAL_MODES)}; got {self.temporal!r}"
+            )
+        tf = self.taa_filter
+        if isinstance(tf, bool) or int(tf) != tf or not 0 <= tf <= limits.TAA_FILTER_LEVELS_MAX:
+            raise ValueError(
+                f"taa_filter must be 0..{limits.TAA_FILTER_LEVELS_MAX} levels; got {tf!r}"
             )
         b = self.shadow_budget
         if b is not None and (isinstance(b, bool) or int(b) != b or b <= 0):

@@ -30,6 +30,7 @@ from .tasks.lightmap import LightmapTask
 from .tasks.shadow import SunShadowTask
 from .tasks.shadow_atlas import ShadowAtlasTask
 from .tasks.taa import AccumulateTask
+from .tasks.taa_filter import TaaFilterTask
 from .tasks.temporal import TemporalTask
 
 #: Resources owned outside the graph (the delegate's prims, the OCIO pipeline).
@@ -98,6 +99,11 @@ def build_passes(
         HiZTask(delegate, max(HIZ_LEVELS, method.hiz_level)),
         lighting,
         temporal if temporal is not None else accumulate,
+        *(
+            [TaaFilterTask(delegate, temporal, settings.taa_filter)]
+            if temporal and settings.taa_filter
+            else []
+        ),
         ColorCorrectionTask(delegate, color),
         *method.debug_passes(),
         LightCountTask(delegate),

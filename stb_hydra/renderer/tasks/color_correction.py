@@ -10,6 +10,7 @@ from ..graph import Imported, Rec, Tex
 from ..records import SceneColor
 from .base import Pass
 from .taa import ACCUM
+from .taa_filter import OUTPUT as FILTER_OUTPUT
 from .temporal import OUTPUT as TAA_OUTPUT
 
 if TYPE_CHECKING:
@@ -20,6 +21,7 @@ COLOR_SOURCES = (
     Tex("lighting"),
     *(Tex(n, optional=True) for n in ACCUM),
     Tex(TAA_OUTPUT, optional=True),
+    Tex(FILTER_OUTPUT, optional=True),
 )
 
 

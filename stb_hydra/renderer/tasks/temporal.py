@@ -200,6 +200,11 @@ class TemporalTask(Pass):
         #: Why the history was dropped on the last frame ("" = kept).
         self.last_reset = ""
 
+    @property
+    def latest(self) -> tuple[str, str]:
+        """(history, geometry) textures the last frame wrote (``tasks/taa_filter.py``)."""
+        return HISTORY[self._parity], GEOMETRY[self._parity]
+
     def reset(self) -> None:
         """Forget the history (the next frame starts from its own samples)."""
         self.count = 0
