@@ -143,3 +143,24 @@ def test_filter_removes_noise_on_a_plane():
 def test_taa_filter_setting_is_checked():
     with pytest.raises(ValueError, match="taa_filter"):
         RenderSettings(taa_filter=9)
+
+
+def test_render_cli_taa_filter(tmp_path, repo):
+    """``stb render --taa-filter LEVELS`` renders a taa sequence through the filter; an
+    out-of-range count is a one-line error (exit 2), not a traceback."""
+    import json
+    import subprocess
+    import sys
+
+    from stb_hydra.apps import cli
+
+    scene = str(repo / "usd_scenes" / "default.usda")
+    stats = tmp_path / "s.json"
+    argv = ["render", scene, str(tmp_path / "f.####.exr"), "--frames", "1:2", "--width", "48"]
+    argv += ["--lighting", "stb", "--temporal", "taa", "--stats", str(stats)]
+    assert cli.main([*argv, "--taa-filter", "2"]) == 0
+    assert json.loads(stats.read_text())["settings"]["taa_filter"] == 2
+    bad = [sys.executable, "-m", "stb_hydra.apps.cli", *argv, "--taa-filter", "9"]
+    r = subprocess.run(bad, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2
+    assert "taa_filter must be 0..5" in r.stderr and "Traceback" not in r.stderr
