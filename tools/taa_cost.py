@@ -1,6 +1,7 @@
 """Cost of the taa pass in an STB frame (llvmpipe or a GPU): per-pass wall times
 with ``ctx.finish()`` after every pass (``RenderSettings.profile``), medians over
-frames after a warm-up, for --temporal taa and accumulate.
+frames after a warm-up, for --temporal taa and accumulate. The two engines render
+their frames in turn, so a machine's changing load falls on both alike.
 
     .venv/bin/python tools/taa_cost.py usd_scenes/default.usda --width 745 --height 360
 """
@@ -17,10 +18,8 @@ from stb_hydra.renderer.frame import RenderSettings
 _NOT_PASSES = ("sync", "commit", "prepare")
 
 
-def frame_ms(
-    stage: str, w: int, h: int, temporal: str, frames: int, warmup: int, taa_filter: int = 0
-):
-    s = RenderSettings(
+def _settings(w: int, h: int, temporal: str, taa_filter: int) -> RenderSettings:
+    return RenderSettings(
         width=w,
         height=h,
         lighting="stb",
@@ -28,15 +27,25 @@ def frame_ms(
         profile=True,
         taa_filter=taa_filter if temporal == "taa" else 0,
     )
-    eng = Engine(stage, s)
+
+
+def pass_ms(
+    stage: str, w: int, h: int, frames: int, warmup: int, taa_filter: int = 0
+) -> dict[str, dict[str, float]]:
+    """Median ms per pass of each temporal mode (taa, accumulate), frames interleaved."""
+    engines = {t: Engine(stage, _settings(w, h, t, taa_filter)) for t in ("taa", "accumulate")}
     try:
         for _ in range(frames):
-            eng.render()
-        med = eng.timings.medians(skip=warmup)
+            for eng in engines.values():
+                eng.render()
+        meds = {t: eng.timings.medians(skip=warmup) for t, eng in engines.items()}
     finally:
-        eng.release()
-    passes = {k: v for k, v in med.items() if not k.startswith(_NOT_PASSES) and "." not in k}
-    return med, passes
+        for eng in engines.values():
+            eng.release()
+    return {
+        t: {k: v for k, v in med.items() if not k.startswith(_NOT_PASSES) and "." not in k}
+        for t, med in meds.items()
+    }
 
 
 def main(argv=None) -> int:
@@ -48,10 +57,9 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=6)
     ap.add_argument("--taa-filter", type=int, default=0, help="a-trous levels of taa's filter")
     a = ap.parse_args(argv)
-    for temporal in ("taa", "accumulate"):
-        _med, passes = frame_ms(
-            a.stage, a.width, a.height, temporal, a.frames, a.warmup, a.taa_filter
-        )
+    for temporal, passes in pass_ms(
+        a.stage, a.width, a.height, a.frames, a.warmup, a.taa_filter
+    ).items():
         total = sum(passes.values())
         key = "temporal" if temporal == "taa" else "accumulate"
         share = passes.get(key, 0.0) / max(total, 1e-9)

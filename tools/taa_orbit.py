@@ -58,11 +58,27 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--skip", type=int, default=8, help="frames left out of the medians")
     ap.add_argument("--strip", help="write raw/taa/reference PNGs of a few frames here")
+    ap.add_argument(
+        "--ref-cache",
+        help="a .npy of the reference frames: read when it exists, else written (the "
+        "256-light chess reference takes ~30 min on 2 cores); name it by the arguments",
+    )
+    ap.add_argument("--taa-filter", type=int, default=0, help="taa spatial filter levels")
     a = ap.parse_args(argv)
     st = orbit_stage(a.stage, a.frames, a.degrees, a.pivot)
-    ref, _ = render_sequence(st, a.frames, a.width, a.height, "reference", "off")
+    cache = Path(a.ref_cache) if a.ref_cache else None
+    if cache is not None and cache.exists():
+        ref = np.load(cache)
+        if ref.shape != (a.frames, a.height, a.width, 3):
+            raise SystemExit(f"taa_orbit: {cache} holds {ref.shape}, not this orbit's frames")
+    else:
+        ref, _ = render_sequence(st, a.frames, a.width, a.height, "reference", "off")
+        if cache is not None:
+            np.save(cache, ref)
     raw, _ = render_sequence(st, a.frames, a.width, a.height, "stb", "off")
-    taa, taa_ms = render_sequence(st, a.frames, a.width, a.height, "stb", "taa")
+    taa, taa_ms = render_sequence(
+        st, a.frames, a.width, a.height, "stb", "taa", taa_filter=a.taa_filter
+    )
     rows = {}
     sl = slice(a.skip, a.frames)
     for name, seq in (("raw", raw), ("taa", taa)):

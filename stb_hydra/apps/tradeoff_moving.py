@@ -92,6 +92,7 @@ def render_sequence(
     seed: int = 0,
     profile: bool = True,
     on_frame=None,
+    taa_filter: int = 0,
     **options,
 ) -> Sequence:
     """Render times 1..``frames`` of ``stage`` with one engine (history carried over);
@@ -106,6 +107,7 @@ def render_sequence(
         lighting=method,
         seed=seed,
         temporal=temporal,
+        taa_filter=taa_filter if temporal == "taa" else 0,
         profile=profile,
         method_options=dict(options),
     )
