@@ -108,9 +108,12 @@ def test_sphere_cut_by_floor_matches_closed_form():
     # eq. 18); our shader integrates the silhouette as a polygon, independently.
     s2 = np.sin(alpha) ** 2
     x = np.sqrt(np.maximum(1.0 / s2 - 1.0, 0.0))
-    y = np.clip(-x * np.cos(beta) / np.sin(beta), -1, 1)
-    sy = np.sin(beta) * np.sqrt(1 - y * y)
-    clipped = ((np.cos(beta) * np.arccos(y) - x * sy) * s2 + np.arctan(sy / x)) / math.pi
+    # Straight below the centre (beta = 0) the cap is never clipped: np.where below
+    # takes the full formula there, so the clipped one may divide by zero.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y = np.clip(-x * np.cos(beta) / np.sin(beta), -1, 1)
+        sy = np.sin(beta) * np.sqrt(1 - y * y)
+        clipped = ((np.cos(beta) * np.arccos(y) - x * sy) * s2 + np.arctan(sy / x)) / math.pi
     full = np.cos(beta) * s2
     F = np.where(beta + alpha <= math.pi / 2, full, clipped)
     expect = RHO * L * F
