@@ -20,6 +20,24 @@ import numpy as np
 PASSES = ("stb_bigtile", "stb_smalltile", "stb_terms", "stb_lighting")
 
 
+def render_in_turn(stage: str, settings: dict, frames: int) -> dict:
+    """One engine per ``settings`` entry (name -> RenderSettings with ``profile``); each
+    round renders one frame of every engine, so a shared machine's changing load falls
+    on all alike. Returns name -> the engine's ``Timings`` (``frames``: one dict of
+    per-pass wall ms per frame). ``tools/taa_cost.py`` uses it too."""
+    from stb_hydra.renderer.engine import Engine
+
+    engines = {name: Engine(stage, s) for name, s in settings.items()}
+    try:
+        for _ in range(frames):
+            for eng in engines.values():
+                eng.render()
+    finally:
+        for eng in engines.values():
+            eng.release()
+    return {name: eng.timings for name, eng in engines.items()}
+
+
 def parse_config(text: str) -> tuple[str, dict[str, str]]:
     """``NAME:K=V,K=V`` -> (NAME, options); ``NAME:`` is the defaults."""
     name, _, rest = text.partition(":")
@@ -35,29 +53,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--warmup", type=int, default=2)
     a = ap.parse_args(argv)
-    from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
     w, h = (int(v) for v in a.size.split("x"))
     configs = [parse_config(c) for c in (a.config or ["defaults:", "ris:N=4,select=ris"])]
-    engines = {
-        name: Engine(
-            a.stage,
-            RenderSettings(width=w, height=h, lighting="stb", profile=True, method_options=o),
-        )
+    settings = {
+        name: RenderSettings(width=w, height=h, lighting="stb", profile=True, method_options=o)
         for name, o in configs
     }
-    times: dict[str, list[list[float]]] = {name: [] for name in engines}
-    try:
-        for i in range(a.warmup + a.frames):
-            for name, eng in engines.items():
-                eng.render()
-                tf = eng.timings.frames[-1]
-                if i >= a.warmup:
-                    times[name].append([tf.get(f"lighting.{p}", 0.0) for p in PASSES])
-    finally:
-        for eng in engines.values():
-            eng.release()
+    timings = render_in_turn(a.stage, settings, a.warmup + a.frames)
+    times = {
+        name: [[tf.get(f"lighting.{p}", 0.0) for p in PASSES] for tf in t.frames[a.warmup :]]
+        for name, t in timings.items()
+    }
     print(f"{a.stage} {w}x{h}, {a.frames} frames each (interleaved), load {os.getloadavg()[0]:.2f}")
     base = None
     for name, rows in times.items():

@@ -11,7 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from stb_hydra.renderer.engine import Engine
+from stb_pass_cost import render_in_turn
+
 from stb_hydra.renderer.frame import RenderSettings
 
 #: Timing keys that are not passes (phases, sub-pass scopes).
@@ -33,18 +34,14 @@ def pass_ms(
     stage: str, w: int, h: int, frames: int, warmup: int, taa_filter: int = 0
 ) -> dict[str, dict[str, float]]:
     """Median ms per pass of each temporal mode (taa, accumulate), frames interleaved."""
-    engines = {t: Engine(stage, _settings(w, h, t, taa_filter)) for t in ("taa", "accumulate")}
-    try:
-        for _ in range(frames):
-            for eng in engines.values():
-                eng.render()
-        meds = {t: eng.timings.medians(skip=warmup) for t, eng in engines.items()}
-    finally:
-        for eng in engines.values():
-            eng.release()
+    settings = {t: _settings(w, h, t, taa_filter) for t in ("taa", "accumulate")}
     return {
-        t: {k: v for k, v in med.items() if not k.startswith(_NOT_PASSES) and "." not in k}
-        for t, med in meds.items()
+        t: {
+            k: v
+            for k, v in timings.medians(skip=warmup).items()
+            if not k.startswith(_NOT_PASSES) and "." not in k
+        }
+        for t, timings in render_in_turn(stage, settings, frames).items()
     }
 
 
