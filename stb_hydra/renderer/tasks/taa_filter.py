@@ -44,11 +44,9 @@ class TaaFilterTask(Pass):
     )
 
     def __init__(self, delegate: GLRenderDelegate, temporal: TemporalTask, levels: int) -> None:
+        """``levels``: 1..limits.TAA_FILTER_LEVELS_MAX (``RenderSettings`` checks the
+        setting; ``build_passes`` adds this pass only when it is not 0)."""
         super().__init__(delegate)
-        if not 1 <= levels <= limits.TAA_FILTER_LEVELS_MAX:
-            raise ValueError(
-                f"taa_filter must be 0..{limits.TAA_FILTER_LEVELS_MAX} levels; got {levels!r}"
-            )
         self.temporal = temporal
         self.levels = levels
 
