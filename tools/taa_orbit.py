@@ -5,7 +5,14 @@ per-frame HDR-FLIP (mid grey) and relMSE against the reference, temporal
 instability of each sequence, and optionally a strip of PNGs.
 
     .venv/bin/python tools/taa_orbit.py usd_scenes/default.usda --frames 60 \\
-        --width 320 --height 180 [--strip docs/images/taa] [--degrees 1.0]
+        --width 320 --height 180 [--strip docs/images/taa] [--degrees 1.0] [--floors]
+
+``--floors`` also measures what bounds taa's figures from below, against the same
+per-frame reference: the exact lighting through the taa pass (its own error with
+noise-free input: antialiasing, reprojection, the clip box's lag), the antialiasing
+alone (the reference at the middle frame averaged over taa's jitter sequence, camera
+still), and STB accumulated over 16 and 64 frames at the middle frame, camera still
+(what any temporal reuse of that many STB frames can reach at best).
 """
 
 from __future__ import annotations
@@ -32,6 +39,50 @@ def render_sequence(stage, frames, width, height, lighting, temporal, **opts):
     """(frames, ms per frame) of the orbit (``stb tradeoff --moving``'s renderer)."""
     seq = moving_sequence(stage, frames, width, height, lighting, temporal, profile=False, **opts)
     return np.array(seq.images), seq.times
+
+
+def still_image(stage, frame: int, width, height, lighting, temporal, frames) -> np.ndarray:
+    """Orbit frame ``frame`` with the camera held still: ``frames`` renders through
+    ``temporal`` ("taa": the jitter sequence, averaged; "accumulate": no jitter)."""
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    eng = Engine(
+        stage, RenderSettings(width=width, height=height, lighting=lighting, temporal=temporal)
+    )
+    try:
+        eng.request_aovs({"color"})
+        if temporal == "accumulate":
+            eng.render(time=1 + frame, accumulate=frames)
+        else:
+            for _ in range(frames):
+                eng.render(time=1 + frame)
+        return np.array(eng.aovs["color"][..., :3], dtype=np.float32)
+    finally:
+        eng.release()
+
+
+def floors(stage, a, ref: np.ndarray) -> None:
+    """Print the lower bounds of ``--floors`` (see the module docstring)."""
+    sl = slice(a.skip, a.frames)
+    rt, _ = render_sequence(stage, a.frames, a.width, a.height, "reference", "taa")
+    fl = per_frame_flip(rt[sl], ref[sl])
+    print(
+        f"floor: reference lighting through taa (orbit, frames {a.skip}..{a.frames - 1}): "
+        f"flip {float(np.median(fl)):.4f}  instability {instability_ratio(rt[sl], ref[sl]):.2f}x"
+    )
+    mid = a.frames // 2
+    aa = still_image(stage, mid, a.width, a.height, "reference", "taa", 16)
+    print(
+        f"floor: antialiasing alone (frame {mid}, 16 jittered reference frames, still): "
+        f"flip {per_frame_flip([aa], [ref[mid]])[0]:.4f}"
+    )
+    for n in (16, 64):
+        acc = still_image(stage, mid, a.width, a.height, "stb", "accumulate", n)
+        print(
+            f"floor: STB accumulated over {n} frames (frame {mid}, still camera): "
+            f"flip {per_frame_flip([acc], [ref[mid]])[0]:.4f}"
+        )
 
 
 def write_strip(out: Path, seqs, frames) -> None:
@@ -64,6 +115,9 @@ def main(argv=None) -> int:
         "256-light chess reference takes ~30 min on 2 cores); name it by the arguments",
     )
     ap.add_argument("--taa-filter", type=int, default=0, help="taa spatial filter levels")
+    ap.add_argument(
+        "--floors", action="store_true", help="also measure the lower bounds (module docstring)"
+    )
     a = ap.parse_args(argv)
     st = orbit_stage(a.stage, a.frames, a.degrees, a.pivot)
     cache = Path(a.ref_cache) if a.ref_cache else None
@@ -98,6 +152,8 @@ def main(argv=None) -> int:
         print(f"{k:5s} flip {f:.4f}  relmse {r:.4f}  instability {inst:.2f}x")
     print(f"taa/raw HDR-FLIP ratio {rows['taa'][0] / rows['raw'][0]:.3f}")
     print(f"taa frame ms (median, AOV readback excluded) {np.median(taa_ms[a.skip :]):.1f}")
+    if a.floors:
+        floors(st, a, ref)
     if a.strip:
         write_strip(Path(a.strip), [raw, taa, ref], [a.skip, a.frames // 2, a.frames - 1])
     return 0
