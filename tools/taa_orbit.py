@@ -41,6 +41,18 @@ def render_sequence(stage, frames, width, height, lighting, temporal, **opts):
     return np.array(seq.images), seq.times
 
 
+def sequence_figures(seq: np.ndarray, ref: np.ndarray, skip: int) -> tuple[float, float, float]:
+    """Median per-frame HDR-FLIP, median relMSE and instability over the reference's,
+    from frame ``skip`` on."""
+    sl = slice(skip, len(ref))
+    rm = [relmse(seq[i], ref[i]) for i in range(skip, len(ref))]
+    return (
+        float(np.median(per_frame_flip(seq[sl], ref[sl]))),
+        float(np.median(rm)),
+        instability_ratio(seq[sl], ref[sl]),
+    )
+
+
 def still_image(stage, frame: int, width, height, lighting, temporal, frames) -> np.ndarray:
     """Orbit frame ``frame`` with the camera held still: ``frames`` renders through
     ``temporal`` ("taa": the jitter sequence, averaged; "accumulate": no jitter)."""
@@ -64,12 +76,11 @@ def still_image(stage, frame: int, width, height, lighting, temporal, frames) ->
 
 def floors(stage, a, ref: np.ndarray) -> None:
     """Print the lower bounds of ``--floors`` (see the module docstring)."""
-    sl = slice(a.skip, a.frames)
     rt, _ = render_sequence(stage, a.frames, a.width, a.height, "reference", "taa")
-    fl = per_frame_flip(rt[sl], ref[sl])
+    f, r, inst = sequence_figures(rt, ref, a.skip)
     print(
         f"floor: reference lighting through taa (orbit, frames {a.skip}..{a.frames - 1}): "
-        f"flip {float(np.median(fl)):.4f}  instability {instability_ratio(rt[sl], ref[sl]):.2f}x"
+        f"flip {f:.4f}  relmse {r:.4f}  instability {inst:.2f}x"
     )
     mid = a.frames // 2
     aa = still_image(stage, mid, a.width, a.height, "reference", "taa", 16)
@@ -133,16 +144,7 @@ def main(argv=None) -> int:
     taa, taa_ms = render_sequence(
         st, a.frames, a.width, a.height, "stb", "taa", taa_filter=a.taa_filter
     )
-    rows = {}
-    sl = slice(a.skip, a.frames)
-    for name, seq in (("raw", raw), ("taa", taa)):
-        fl = per_frame_flip(seq[sl], ref[sl])
-        rm = [relmse(seq[i], ref[i]) for i in range(a.skip, a.frames)]
-        rows[name] = (
-            float(np.median(fl)),
-            float(np.median(rm)),
-            instability_ratio(seq[sl], ref[sl]),
-        )
+    rows = {name: sequence_figures(seq, ref, a.skip) for name, seq in (("raw", raw), ("taa", taa))}
     print(f"orbit {a.stage} {a.frames} frames {a.width}x{a.height} {a.degrees} deg/frame")
     print(
         f"frames {a.skip}..{a.frames - 1}: median HDR-FLIP, median relMSE,"
