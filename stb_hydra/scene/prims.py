@@ -201,9 +201,75 @@ class MeshPrim:
         return self.instance_transforms
 
 
+#: ``TextureRef.wrap_s``/``wrap_t`` values (UsdUVTexture's tokens; MaterialX
+#: ``periodic``/``clamp``/``mirror``/``constant`` map to repeat/clamp/mirror/black).
+WRAP_MODES = ("repeat", "mirror", "clamp", "black", "useMetadata")
+#: ``TextureRef.channels``: the reader output an input uses.
+TEXTURE_CHANNELS = ("rgb", "rgba", "r", "g", "b", "a")
+#: Material inputs that may be driven by a texture (UsdPreviewSurface names; MaterialX
+#: ``standard_surface`` is translated onto them). ``normal`` holds a tangent-space
+#: normal in [-1, 1] (+X along +s, +Y along +t, +Z the geometric normal) after the
+#: reader's scale and bias.
+TEXTURABLE_INPUTS = (
+    "diffuseColor",
+    "emissiveColor",
+    "specularColor",
+    "metallic",
+    "roughness",
+    "clearcoat",
+    "clearcoatRoughness",
+    "opacity",
+    "normal",
+    "occlusion",
+)
+#: Identity ``TextureRef.st_transform`` (row-major 2x3 affine).
+ST_IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+@dataclass(frozen=True)
+class TextureRef:
+    """One texture lookup feeding a material input (a UsdUVTexture, or a MaterialX
+    ``image``/``tiledimage``), resolved on the CPU; no GL.
+
+    The value an input receives at texture coordinates ``st`` (the mesh primvar named
+    :attr:`st`, after :attr:`st_transform`) is ``texel * scale + bias`` where ``texel``
+    is the file's value in scene-linear Rec.709 (colour spaces converted, see
+    :attr:`source_color_space`), swizzled by :attr:`channels`; outside [0, 1] the wrap
+    modes apply; a file that cannot be read gives :attr:`fallback` (then ``scale`` and
+    ``bias`` are not applied, as in UsdUVTexture).
+    """
+
+    #: Resolved file path (may hold the ``<UDIM>`` token); "" when it did not resolve.
+    file: str
+    #: The authored asset path (for messages).
+    asset: str = ""
+    #: "auto" | "sRGB" | "raw" (UsdUVTexture tokens) or an OCIO colour-space name
+    #: (MaterialX ``colorspace``, e.g. "srgb_texture", "lin_rec709").
+    source_color_space: str = "auto"
+    wrap_s: str = "useMetadata"
+    wrap_t: str = "useMetadata"
+    #: Which output of the reader the input is connected to (``TEXTURE_CHANNELS``).
+    channels: str = "rgb"
+    scale: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0)
+    bias: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    fallback: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+    #: Name of the texture-coordinate primvar (without ``primvars:``).
+    st: str = "st"
+    #: Row-major 2x3 affine applied to ``st`` before the lookup:
+    #: ``(s', t') = (a*s + b*t + c, d*s + e*t + f)`` (UsdTransform2d, MaterialX
+    #: ``tiledimage`` uvtiling/uvoffset).
+    st_transform: tuple[float, float, float, float, float, float] = ST_IDENTITY
+    #: Prim path (or MaterialX node name) of the reader, for messages.
+    owner: str = ""
+
+
 @dataclass
 class MaterialPrim:
-    """UsdPreviewSurface constant inputs (textures are not sampled)."""
+    """A surface material in our model: UsdPreviewSurface's inputs (metallic or
+    specular workflow), each a constant or a :class:`TextureRef` (``textures[name]``
+    overrides the constant of input ``name``; names from ``TEXTURABLE_INPUTS``).
+    Colours are scene-linear Rec.709; MaterialX ``standard_surface`` looks are
+    translated onto the same inputs (``scene.materialx``)."""
 
     path: str
     diffuse_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
@@ -211,13 +277,33 @@ class MaterialPrim:
     metallic: float = 0.0
     emissive_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
     opacity: float = 1.0
+    #: Cut-out threshold: opacity below it is not drawn (G-buffer, shadows, bake);
+    #: 0 = no cut-out (opacity < 1 is then translucency).
+    opacity_threshold: float = 0.0
     use_specular_workflow: bool = False
     specular_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
     ior: float = 1.5
-    #: No readable UsdPreviewSurface surface: every value above is a default and a
-    #: renderer should use the mesh's display colour instead (``warnings`` says why).
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.01
+    occlusion: float = 1.0
+    #: Texture-driven inputs: input name -> lookup.
+    textures: dict[str, TextureRef] = field(default_factory=dict)
+    #: No readable surface: every value above is a default and a renderer should use
+    #: the mesh's display colour instead (``warnings`` says why).
     uses_defaults: bool = False
+    #: Where the material came from: "UsdPreviewSurface" | "MaterialX" | "".
+    source: str = ""
+    #: One-line problems (each names the material / node); reported once.
     warnings: list[str] = field(default_factory=list)
+    #: Documented approximations that are not problems (lobes the engine does not
+    #: model, e.g. standard_surface subsurface): shown in the previewer's material
+    #: panel and ``stb inspect``, not printed as warnings.
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def st_primvars(self) -> tuple[str, ...]:
+        """Texture-coordinate primvars the material's textures read (sorted)."""
+        return tuple(sorted({t.st for t in self.textures.values()}))
 
 
 @dataclass
