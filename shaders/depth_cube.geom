@@ -9,6 +9,10 @@ layout(triangle_strip, max_vertices = 18) out;
 uniform mat4 u_face_vp[6];
 uniform int u_face_mask;
 out float gl_ClipDistance[4];
+#ifdef ALPHA_TEST
+in vec2 v_uv_vs[];
+out vec2 v_uv;
+#endif
 
 bool outside(vec4 a, vec4 b, vec4 c) {
     // every vertex beyond the same clip plane
@@ -33,6 +37,9 @@ void main() {
             gl_ClipDistance[2] = p.w - p.y;
             gl_ClipDistance[3] = p.w + p.y;
             gl_Position = vec4((p.x + k.x * p.w) / 3.0, (p.y + k.y * p.w) / 2.0, p.z, p.w);
+#ifdef ALPHA_TEST
+            v_uv = v_uv_vs[i];
+#endif
             EmitVertex();
         }
         EndPrimitive();

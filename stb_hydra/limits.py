@@ -504,3 +504,25 @@ AREA_SHADOW_THICK_STEPS = 2.0
 #: take the farthest depth of a 2x2 gather (the receiver's own surface must not block);
 #: elsewhere the nearest texel (the gather-max shrinks every blocker by a texel).
 AREA_SHADOW_RECEIVER_TEXELS = 6.0
+
+# --- Material textures (renderer/textures.py, shaders/common/material.glsl) ----------------
+
+#: GPU memory for material textures (bytes, mip chains included). Past it the largest
+#: textures are halved (one warning naming them) until the set fits: 1 GiB holds the
+#: OpenChessSet's ~45 distinct 2k maps at full size with room to spare.
+TEXTURE_BUDGET_BYTES = 1024 * 1024 * 1024
+#: Largest texture side uploaded (px); a larger file is halved on load (with a warning).
+#: GL 4.5 guarantees GL_MAX_TEXTURE_SIZE >= 16384; 8192 keeps one texture <= 256 MiB.
+TEXTURE_MAX_SIZE = 8192
+#: UDIM tiles per texture: 1001-1100 (10 columns x 10 rows), one array layer each.
+MAX_UDIM_TILES = 100
+#: First UDIM tile number (u 0-1, v 0-1).
+UDIM_FIRST_TILE = 1001
+#: Anisotropic filtering of material textures (samples; GL clamps to what it has).
+TEXTURE_ANISOTROPY = 16.0
+#: Texture slots of one material (diffuseColor, emissiveColor, specularColor, metallic,
+#: roughness, opacity, normal, occlusion): one sampler each, under the 16 texture
+#: units a fragment shader is guaranteed (GL 4.3), beside the G-buffer pass's none.
+MATERIAL_TEXTURE_SLOTS = 8
+#: Bytes per file read for a texture (a corrupt header claiming more is refused).
+TEXTURE_MAX_FILE_BYTES = 1024 * 1024 * 1024

@@ -47,7 +47,7 @@ def pick_table(delegate: GLRenderDelegate) -> list[list[str]] | None:
         m = rp.mesh
         if m is None or not m.visible or len(m.indices) == 0:
             continue
-        key = (m.geometry_key or path, delegate.resolve_material(m).key(), m.dynamic)
+        key = delegate.batch_key(path, m)
         groups.setdefault(key, []).extend([path] * len(m.world_transforms()))
     table = list(groups.values())
     if len(table) != len(delegate.batches) or any(

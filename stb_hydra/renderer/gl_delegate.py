@@ -18,13 +18,16 @@ from typing import Any
 
 import moderngl
 import numpy as np
-import numpy.typing as npt
 
 from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits as D
 from .delegate import RenderDelegate
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
+from .material_binding import MaterialParams, material_params
+from .textures import TextureCache, TextureKey
+
+__all__ = ["BatchArrays", "DrawBatch", "GLRenderDelegate", "GeometryBuffers", "MaterialParams"]
 
 _GEOM_BITS = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
 _BATCH_BITS = (
@@ -39,33 +42,14 @@ _BATCH_BITS = (
 
 @dataclass
 class GeometryBuffers:
-    vbo: moderngl.Buffer
+    vbo: moderngl.Buffer  # position, normal, colour (9 floats per vertex)
     ibo: moderngl.Buffer
     index_count: int
     bounds: tuple[np.ndarray, np.ndarray]  # object-space AABB
     users: set[str] = field(default_factory=set)
-
-
-@dataclass
-class MaterialParams:
-    base: tuple[float, float, float] = (0.18, 0.18, 0.18)
-    use_vertex_color: bool = False
-    roughness: float = 0.5
-    metallic: float = 0.0
-    specular_workflow: bool = False
-    specular_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    emissive: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def key(self) -> tuple:
-        return (
-            self.base,
-            self.use_vertex_color,
-            self.roughness,
-            self.metallic,
-            self.specular_workflow,
-            self.specular_color,
-            self.emissive,
-        )
+    #: Texture coordinates, tangent frame, material primvars (10 floats per vertex):
+    #: only for meshes that have texture coordinates or material primvars.
+    vbo_material: moderngl.Buffer | None = None
 
 
 @dataclass
@@ -97,11 +81,6 @@ class BatchArrays:
     dynamic: np.ndarray  # (B,) bool
 
 
-def _t3(v: npt.ArrayLike) -> tuple[float, float, float]:
-    a = np.asarray(v, dtype=np.float64).reshape(-1)
-    return (float(a[0]), float(a[1]), float(a[2]))
-
-
 class GLRenderDelegate(RenderDelegate):
     def __init__(self, ctx: moderngl.Context) -> None:
         super().__init__()
@@ -120,6 +99,8 @@ class GLRenderDelegate(RenderDelegate):
         self._fov_packed: np.ndarray | None = None
         #: Records written by the last upload (0: none; len(rows): full).
         self.last_upload_records = 0
+        #: Material textures (OIIO -> OCIO -> GL), shared by every batch.
+        self.textures = TextureCache(ctx)
         self.ies_texture: moderngl.TextureArray | None = None
         self._ies_version = -1
         self.ies_layer_count = 0
@@ -145,10 +126,16 @@ class GLRenderDelegate(RenderDelegate):
             if path in g.users:
                 g.users.discard(path)
                 if not g.users:
-                    g.vbo.release()
-                    g.ibo.release()
+                    self._release_geometry(g)
                     del self.geometry[key]
         self._batches_dirty = True
+
+    @staticmethod
+    def _release_geometry(g: GeometryBuffers) -> None:
+        g.vbo.release()
+        g.ibo.release()
+        if g.vbo_material is not None:
+            g.vbo_material.release()
 
     # -- commit --
     def commit_resources(self) -> None:
@@ -197,6 +184,7 @@ class GLRenderDelegate(RenderDelegate):
             if n
             else (np.zeros(3, np.float32), np.zeros(3, np.float32))
         )
+        extra = _material_vertices(mesh)
         if g is None:
             g = GeometryBuffers(
                 self.ctx.buffer(data.tobytes() if n else b"\0" * 36),
@@ -204,8 +192,19 @@ class GLRenderDelegate(RenderDelegate):
                 int(idx.size),
                 bounds,
             )
+            if extra is not None:
+                g.vbo_material = self.ctx.buffer(extra.tobytes())
             self.geometry[key] = g
         else:
+            if extra is not None:
+                if g.vbo_material is None:
+                    g.vbo_material = self.ctx.buffer(extra.tobytes())
+                else:
+                    g.vbo_material.orphan(extra.nbytes)
+                    g.vbo_material.write(extra.tobytes())
+            elif g.vbo_material is not None:
+                g.vbo_material.release()
+                g.vbo_material = None
             g.vbo.orphan(max(data.nbytes, 36))
             if n:
                 g.vbo.write(data.tobytes())
@@ -225,19 +224,35 @@ class GLRenderDelegate(RenderDelegate):
 
     def resolve_material(self, mesh: prims.MeshPrim) -> MaterialParams:
         sp = self.materials.get(mesh.material) if mesh.material else None
-        mat = sp.material if sp is not None else None
-        if mat is not None and not mat.uses_defaults:
-            return MaterialParams(
-                base=_t3(mat.diffuse_color),
-                roughness=float(mat.roughness),
-                metallic=float(mat.metallic),
-                specular_workflow=bool(mat.use_specular_workflow),
-                specular_color=_t3(mat.specular_color),
-                emissive=_t3(mat.emissive_color),
-            )
-        return MaterialParams(
-            base=_t3(mesh.display_color), use_vertex_color=mesh.vertex_colors is not None
-        )
+        return material_params(sp.material if sp is not None else None, mesh)
+
+    def batch_key(self, path: str, mesh: prims.MeshPrim) -> tuple:
+        """What groups meshes into one instanced draw batch."""
+        return (mesh.geometry_key or path, self.resolve_material(mesh).key(), mesh.dynamic)
+
+    def _commit_textures(self) -> None:
+        """Plan (budget) and load the textures the batches read; free the rest."""
+        need: dict[TextureKey, str] = {}
+        users: dict[TextureKey, set[str]] = {}
+        for b in self.batches:
+            for ref in b.material.textures:
+                if ref is not None:
+                    k = TextureKey(ref.file, ref.source_color_space)
+                    need.setdefault(k, b.material.path)
+                    users.setdefault(k, set()).add(b.material.path)
+        cache = self.textures
+        for k in [k for k in cache.textures if k not in need]:
+            cache._drop(k)
+        cache.plan(need)
+        for b in self.batches:
+            for ref in b.material.textures:
+                if ref is not None:
+                    cache.acquire(ref, b.material.path)
+        for k, t in cache.textures.items():
+            t.users = set(users.get(k, ()))
+        for w in cache.warnings:
+            self.warn_once("texture:" + w, w)
+        cache.warnings.clear()
 
     def _rebuild_batches(self) -> None:
         groups: dict[tuple, list[np.ndarray]] = {}
@@ -254,7 +269,7 @@ class GLRenderDelegate(RenderDelegate):
             if key_g not in self.geometry:
                 self._upload_geometry(path, m)
             mp = self.resolve_material(m)
-            k = (key_g, mp.key(), m.dynamic)
+            k = (key_g, mp.key(), m.dynamic)  # == self.batch_key(path, m)
             xf = m.world_transforms()
             groups.setdefault(k, []).append(xf)
             meta[k] = (key_g, mp, m.dynamic)
@@ -298,6 +313,7 @@ class GLRenderDelegate(RenderDelegate):
             prev_map[k] = models
         self._batch_prev = prev_map
         self.batches = new
+        self._commit_textures()
         self.scene_bounds = (lo, hi) if np.all(np.isfinite(lo)) else (np.zeros(3), np.zeros(3))
         self._batches_dirty = False
 
@@ -339,7 +355,8 @@ class GLRenderDelegate(RenderDelegate):
     def vertex_array(
         self, b: DrawBatch, prog: moderngl.Program, depth_only: bool = False
     ) -> moderngl.VertexArray:
-        """Instanced VAO of a batch for a program (cached per program)."""
+        """Instanced VAO of a batch for a program (cached per program). ``depth_only``:
+        positions (and texture coordinates, for alpha-tested depth programs) only."""
         key = prog.glo
         vao = b.vaos.get(key)
         if vao is None:
@@ -350,12 +367,18 @@ class GLRenderDelegate(RenderDelegate):
                     (g.vbo, "3f 24x", "in_pos"),
                     (b.instance_buffer, "16f 64x/i", "in_model"),
                 ]
+                if g.vbo_material is not None and "in_uv" in prog:
+                    content.append((g.vbo_material, "2f 32x", "in_uv"))
             else:
                 content = [
                     (g.vbo, "3f 3f 3f", "in_pos", "in_normal", "in_color"),
                     (b.instance_buffer, "16f 16f/i", "in_model", "in_prev_model"),
                 ]
-            vao = self.ctx.vertex_array(prog, content, index_buffer=g.ibo, index_element_size=4)
+                if g.vbo_material is not None and "in_uv" in prog:
+                    content.append((g.vbo_material, "2f 4f 4f", "in_uv", "in_tangent", "in_attr"))
+            vao = self.ctx.vertex_array(
+                prog, content, index_buffer=g.ibo, index_element_size=4, skip_errors=True
+            )
             b.vaos[key] = vao
         return vao
 
@@ -465,8 +488,8 @@ class GLRenderDelegate(RenderDelegate):
 
     def release(self) -> None:
         for g in self.geometry.values():
-            g.vbo.release()
-            g.ibo.release()
+            self._release_geometry(g)
+        self.textures.release()
         for b in self.batches:
             if b.instance_buffer is not None:
                 b.instance_buffer.release()
@@ -478,3 +501,22 @@ class GLRenderDelegate(RenderDelegate):
             self.ies_texture.release()
         self.geometry.clear()
         self.batches.clear()
+
+
+def _material_vertices(mesh: prims.MeshPrim) -> np.ndarray | None:
+    """(n, 10) float32 texture coordinates, tangent frame and material primvars of a
+    mesh that has texture coordinates or material primvars, else None."""
+    if mesh.uvs is None and mesh.attrs is None:
+        return None
+    n = len(mesh.points)
+    out = np.zeros((max(n, 1), 10), dtype=np.float32)
+    if mesh.uvs is not None:
+        out[:n, 0:2] = mesh.uvs[:n]
+    if mesh.tangents is not None:
+        out[:n, 2:6] = mesh.tangents[:n]
+    else:
+        out[:n, 2] = 1.0
+        out[:n, 5] = 1.0
+    if mesh.attrs is not None:
+        out[:n, 6:10] = mesh.attrs[:n]
+    return out

@@ -86,6 +86,7 @@ class MeshRprim(RenderPrim):
         geom_bits = D.DirtyPoints | D.DirtyTopology | D.DirtyNormals | D.DirtyPrimvar
         if m is None or bits & geom_bits:
             g = ds.geometry()
+            uvs = tangents = attrs = None
             if g is None:
                 pts = np.zeros((0, 3), np.float32)
                 g_n, g_i, vc, dc, dsided = pts, np.zeros((0, 3), np.uint32), None, None, False
@@ -98,8 +99,19 @@ class MeshRprim(RenderPrim):
                     g.display_color,
                     g.double_sided,
                 )
+                uvs, tangents, attrs = g.uvs, g.tangents, g.attrs
             old = m
-            m = prims.MeshPrim(self.path, pts, g_n, g_i, vertex_colors=vc, double_sided=dsided)
+            m = prims.MeshPrim(
+                self.path,
+                pts,
+                g_n,
+                g_i,
+                vertex_colors=vc,
+                uvs=uvs,
+                tangents=tangents,
+                attrs=attrs,
+                double_sided=dsided,
+            )
             if dc is not None:
                 m.display_color = np.asarray(dc, dtype=np.float64)
             m.geometry_key = ds.geometry_key()

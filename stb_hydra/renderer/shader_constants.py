@@ -188,6 +188,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_CLUSTER_LIGHTS": str(limits.BIG_TILE_CLUSTER_LIGHTS),
         "LIM_BIG_TILE_CLUSTER_FANOUT": str(limits.BIG_TILE_CLUSTER_FANOUT),
         "LIM_BIG_TILE_SUPERS_MAX": str(limits.BIG_TILE_SUPERS_MAX),
+        "LIM_MATERIAL_TEXTURE_SLOTS": str(limits.MATERIAL_TEXTURE_SLOTS),
+        "LIM_UDIM_FIRST_TILE": str(limits.UDIM_FIRST_TILE),
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),

@@ -27,11 +27,11 @@ from ..shadows.capture import (
     texel_angle,
 )
 from ..shadows.culling import boxes_in_sphere, frustum_planes, visible_faces
+from .depth_draw import DepthDraw
 from .gl import set_uniform, shader_library
 
 if TYPE_CHECKING:
     from .gl_delegate import GLRenderDelegate
-
 
 #: ``ShadowCapturer`` modes: "per_face" draws each cube face on its own (the culled
 #: batches of that face; the reference), "one_pass" draws every batch once for all six
@@ -133,15 +133,12 @@ class ShadowCapturer:
         target (cell side ``f``), one pass per face."""
         ctx = self.ctx
         batches = delegate.batch_arrays().batches
-        prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
+        draw = DepthDraw(ctx, "depth_only.vert", "depth_only.frag")
         for i in faces:
             ctx.viewport = ((i % 3) * f, (i // 3) * f, f, f)
-            set_uniform(prog, "u_light_view_proj", vps[i])
+            draw.set("u_light_view_proj", vps[i])
             for j in np.nonzero(vis[i])[0].tolist():
-                b = batches[j]
-                delegate.vertex_array(b, prog, depth_only=True).render(
-                    moderngl.TRIANGLES, instances=b.count
-                )
+                draw.draw(delegate, batches[j])
 
     def visible(self, delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> np.ndarray:
         """(F, B) bool: batch b is drawn into face f (F = 6 omni, 1 spot); static maps
@@ -192,20 +189,17 @@ class ShadowCapturer:
             fbo.use()
             fbo.clear(depth=1.0)
             if self.mode == "one_pass":
-                prog = shader_library(ctx).program(
-                    "depth_cube.vert", "depth_only.frag", geometry="depth_cube.geom"
+                draw = DepthDraw(
+                    ctx, "depth_cube.vert", "depth_only.frag", geometry="depth_cube.geom"
                 )
                 ctx.viewport = (0, 0, 3 * f, 2 * f)
-                cast(moderngl.Uniform, prog["u_face_vp"]).write(vps.tobytes())
+                draw.set("u_face_vp", vps)
                 masks = (vis * (1 << np.arange(6))[:, None]).sum(axis=0)
                 for i in range(4):
                     ctx.enable_direct(_GL_CLIP_DISTANCE0 + i)
                 for j in np.nonzero(masks)[0].tolist():
-                    b = batches[j]
-                    set_uniform(prog, "u_face_mask", int(masks[j]))
-                    delegate.vertex_array(b, prog, depth_only=True).render(
-                        moderngl.TRIANGLES, instances=b.count
-                    )
+                    draw.set("u_face_mask", int(masks[j]))
+                    draw.draw(delegate, batches[j])
                 for i in range(4):
                     ctx.disable_direct(_GL_CLIP_DISTANCE0 + i)
                 passes = 2

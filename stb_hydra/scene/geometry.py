@@ -42,6 +42,30 @@ class MeshGeometry:
     display_color: np.ndarray | None = None  # (3,) constant colour
     double_sided: bool = False
     warnings: tuple[str, ...] = ()
+    #: (n, 2) float32 texture coordinates (the requested st primvar), else None.
+    uvs: np.ndarray | None = None
+    #: (n, 4) float32 object-space tangents along +s (xyz, unit, orthogonal to the
+    #: normal) and the bitangent sign (w): bitangent = w * cross(normal, tangent)
+    #: points along +t (MikkTSpace's convention); present with ``uvs``.
+    tangents: np.ndarray | None = None
+    #: (n, 4) float32 values of the requested material primvars (float3 in xyz,
+    #: float in w; see :class:`PrimvarRequest`), else None.
+    attrs: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PrimvarRequest:
+    """Primvars a mesh's material reads besides points and normals: the texture
+    coordinates (``uv``: the first of these names the mesh has) and up to one float3
+    (``vec3``) and one float (``scalar``) primvar for ``UsdPrimvarReader`` inputs."""
+
+    uv: tuple[str, ...] = ("st",)
+    vec3: str | None = None
+    scalar: str | None = None
+
+
+#: The request of a mesh whose material reads nothing special: ``st`` if it exists.
+DEFAULT_PRIMVARS = PrimvarRequest()
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -138,8 +162,12 @@ class _Topology:
         )
 
 
-def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | None:
-    """Triangulated geometry of a Mesh or implicit gprim; None when empty/invalid."""
+def read_mesh_geometry(
+    prim: Usd.Prim, time: Usd.TimeCode, request: PrimvarRequest = DEFAULT_PRIMVARS
+) -> MeshGeometry | None:
+    """Triangulated geometry of a Mesh or implicit gprim; None when empty/invalid.
+    ``request``: the texture-coordinate and material primvars to read (any
+    interpolation, indexed or not); tangents come with the texture coordinates."""
     tname = prim.GetTypeName()
     if tname in IMPLICIT_TYPES:
         return tessellate_implicit(prim, time)
@@ -153,7 +181,9 @@ def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | Non
     if cvals is not None and cinterp == UsdGeom.Tokens.constant and len(cvals):
         display = np.asarray(cvals[0], dtype=np.float32)
         cvals = None
+    extra = _ExtraPrimvars.read(prim, time, request, topo)
     normals_fv, need_fv = _corner_normals(topo, nvals, ninterp, cvals, cinterp)
+    need_fv = need_fv or extra.per_corner
     colors_fv = None
     if cvals is not None:
         colors_fv = topo.expand(cvals, cinterp)
@@ -162,8 +192,104 @@ def read_mesh_geometry(prim: Usd.Prim, time: Usd.TimeCode) -> MeshGeometry | Non
         and ninterp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
         and nvals is not None
     ):
-        return _shared_vertex_mesh(prim, topo, nvals, cvals, cinterp, display)
-    return _face_varying_mesh(prim, topo, normals_fv, colors_fv, display)
+        g = _shared_vertex_mesh(prim, topo, nvals, cvals, cinterp, display)
+        extra.attach(g, topo, None)
+        return g
+    g, used = _face_varying_mesh(prim, topo, normals_fv, colors_fv, display)
+    extra.attach(g, topo, used)
+    return g
+
+
+_PER_CORNER = (UsdGeom.Tokens.faceVarying, UsdGeom.Tokens.uniform)
+
+
+@dataclass
+class _ExtraPrimvars:
+    """The requested texture-coordinate / material primvars of one mesh, read and
+    checked: per point (``vertex``/``varying``/``constant``) or per face-vertex."""
+
+    uv: np.ndarray | None = None  # (points or face-vertices, 2)
+    uv_per_corner: bool = False
+    attr: np.ndarray | None = None  # (points or face-vertices, 4)
+    attr_per_corner: bool = False
+
+    @property
+    def per_corner(self) -> bool:
+        return self.uv_per_corner or self.attr_per_corner
+
+    @classmethod
+    def read(
+        cls, prim: Usd.Prim, time: Usd.TimeCode, req: PrimvarRequest, topo: _Topology
+    ) -> _ExtraPrimvars:
+        out = cls()
+        for name in req.uv:
+            vals, interp = _primvar(prim, name, time)
+            if vals is None:
+                continue
+            v = np.asarray(vals, dtype=np.float64)
+            if v.ndim != 2 or v.shape[1] < 2:
+                topo.warnings.append(f"mesh <{topo.prim_path}>: primvar '{name}' is not a float2")
+                continue
+            uv, per_corner = _per_point_or_corner(v[:, :2], interp, topo)
+            if uv is None:
+                topo.warnings.append(
+                    f"mesh <{topo.prim_path}>: primvar '{name}' has the wrong size; ignored"
+                )
+                continue
+            out.uv, out.uv_per_corner = uv, per_corner
+            break
+        cols: list[tuple[np.ndarray, bool] | None] = []
+        for name, width in ((req.vec3, 3), (req.scalar, 1)):
+            col = None
+            if name:
+                vals, interp = _primvar(prim, name, time)
+                if vals is not None:
+                    v = np.asarray(vals, dtype=np.float64).reshape(len(vals), -1)
+                    v = np.pad(v, ((0, 0), (0, max(0, width - v.shape[1]))))[:, :width]
+                    a, pc = _per_point_or_corner(v, interp, topo)
+                    col = None if a is None else (a, pc)
+            cols.append(col)
+        if any(c is not None for c in cols):
+            pc = any(c is not None and c[1] for c in cols)
+            n = len(topo.fvi) if pc else len(topo.points)
+            attr = np.zeros((n, 4), dtype=np.float64)
+            for c, sl in zip(cols, (slice(0, 3), slice(3, 4))):
+                if c is None:
+                    continue
+                a, a_pc = c
+                attr[:, sl] = a[topo.fvi] if pc and not a_pc else a
+            out.attr, out.attr_per_corner = attr, pc
+        return out
+
+    def attach(self, g: MeshGeometry, topo: _Topology, used: np.ndarray | None) -> None:
+        """Store the primvars on ``g``'s vertices -- the points (shared-vertex layout,
+        ``used`` None) or the face-vertices ``used`` (face-varying layout: output vertex
+        k is face-vertex ``used[k]``) -- then tangents from the texture coordinates."""
+
+        def on_vertices(a: np.ndarray, per_corner: bool) -> np.ndarray:
+            if used is None:
+                return a  # per point (a per-corner primvar forces the other layout)
+            return a[used] if per_corner else a[topo.fvi[used]]
+
+        if self.uv is not None:
+            g.uvs = on_vertices(self.uv, self.uv_per_corner).astype(np.float32)
+            g.tangents = compute_tangents(g.points, g.normals, g.uvs, g.indices)
+        if self.attr is not None:
+            g.attrs = on_vertices(self.attr, self.attr_per_corner).astype(np.float32)
+
+
+def _per_point_or_corner(
+    v: np.ndarray, interp: str | None, topo: _Topology
+) -> tuple[np.ndarray | None, bool]:
+    """(values per point, False) for vertex/varying/constant primvars, (values per
+    face-vertex, True) for faceVarying/uniform; (None, _) when the size is wrong."""
+    if interp in _PER_CORNER:
+        return topo.expand(v, interp), True
+    if interp == UsdGeom.Tokens.constant:
+        return np.broadcast_to(v[0], (len(topo.points), v.shape[1])).copy(), False
+    if len(v) < len(topo.points):
+        return None, False
+    return v[: len(topo.points)], False
 
 
 def _read_topology(
@@ -263,8 +389,9 @@ def _face_varying_mesh(
     normals_fv: np.ndarray,
     colors_fv: np.ndarray | None,
     display: np.ndarray | None,
-) -> MeshGeometry:
-    """One vertex per face-vertex that a triangle uses."""
+) -> tuple[MeshGeometry, np.ndarray]:
+    """One vertex per face-vertex that a triangle uses; also returns those
+    face-vertices (``used``: output vertex k is face-vertex ``used[k]``)."""
     used = np.unique(topo.corners)
     remap = np.full(len(topo.fvi), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
@@ -274,9 +401,8 @@ def _face_varying_mesh(
     if colors_fv is not None:
         out_c = np.asarray(colors_fv, dtype=np.float32)[used]
     tri = remap[topo.corners].astype(np.uint32)
-    return MeshGeometry(
-        out_pts, out_n, tri, out_c, display, _double_sided(prim), tuple(topo.warnings)
-    )
+    g = MeshGeometry(out_pts, out_n, tri, out_c, display, _double_sided(prim), tuple(topo.warnings))
+    return g, used
 
 
 def _double_sided(prim: Usd.Prim) -> bool:
@@ -302,6 +428,67 @@ def _auto_normals(topo: _Topology) -> np.ndarray:
     cos_c = math.cos(math.radians(CREASE_ANGLE_DEG))
     use_flat = np.sum(smooth * flat, axis=1) < cos_c
     return np.where(use_flat[:, None], flat, smooth)
+
+
+def compute_tangents(
+    points: np.ndarray, normals: np.ndarray, uvs: np.ndarray, tris: np.ndarray
+) -> np.ndarray:
+    """(n, 4) float32 per-vertex tangent frames from texture coordinates, in the
+    manner of MikkTSpace: each triangle's dP/ds and dP/dt, projected onto the
+    tangent plane of each corner's normal, normalised and weighted by the corner's
+    angle, summed per vertex; the tangent is then orthonormalised against the normal
+    (Gram-Schmidt) and ``w`` = +1 when (normal x tangent) points along the summed
+    dP/dt, else -1. Shaders rebuild the bitangent per pixel as
+    ``w * cross(N, T)`` from the interpolated (not renormalised) vectors. Vertices
+    are not split where the handedness flips (mirrored uv islands), unlike MikkTSpace:
+    such seams shade with the average frame. A vertex with no usable triangle gets
+    any unit tangent perpendicular to its normal and w = +1."""
+    n = len(points)
+    out = np.zeros((n, 4), dtype=np.float32)
+    if n == 0:
+        return out
+    p = points.astype(np.float64)
+    nrm = normals.astype(np.float64)
+    uv = uvs.astype(np.float64)
+    t = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    p0, p1, p2 = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    w0, w1, w2 = uv[t[:, 0]], uv[t[:, 1]], uv[t[:, 2]]
+    e1, e2 = p1 - p0, p2 - p0
+    d1, d2 = w1 - w0, w2 - w0
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(det) > 1e-20
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+    ds = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv  # dP/ds
+    dt = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * inv  # dP/dt
+    tsum = np.zeros((n, 3))
+    bsum = np.zeros((n, 3))
+    corners = ((0, p1 - p0, p2 - p0), (1, p2 - p1, p0 - p1), (2, p0 - p2, p1 - p2))
+    for k, a, b in corners:
+        la = np.linalg.norm(a, axis=1)
+        lb = np.linalg.norm(b, axis=1)
+        cosang = np.einsum("ij,ij->i", a, b) / np.maximum(la * lb, 1e-30)
+        ang = np.where(ok, np.arccos(np.clip(cosang, -1.0, 1.0)), 0.0)[:, None]
+        vn = nrm[t[:, k]]
+        ts = ds - vn * np.einsum("ij,ij->i", ds, vn)[:, None]
+        tb = dt - vn * np.einsum("ij,ij->i", dt, vn)[:, None]
+        ts = ts / np.maximum(np.linalg.norm(ts, axis=1, keepdims=True), 1e-30)
+        tb = tb / np.maximum(np.linalg.norm(tb, axis=1, keepdims=True), 1e-30)
+        np.add.at(tsum, t[:, k], ts * ang)
+        np.add.at(bsum, t[:, k], tb * ang)
+    tan = tsum - nrm * np.einsum("ij,ij->i", tsum, nrm)[:, None]
+    ln = np.linalg.norm(tan, axis=1)
+    bad = ln < 1e-12
+    if bad.any():
+        # Any perpendicular: the normal crossed with the axis it is least along.
+        nb = nrm[bad]
+        axis = np.eye(3)[np.argmin(np.abs(nb), axis=1)]
+        tan[bad] = np.cross(nb, axis)
+        ln[bad] = np.linalg.norm(tan[bad], axis=1)
+    tan = tan / np.maximum(ln, 1e-30)[:, None]
+    sign = np.where(np.einsum("ij,ij->i", np.cross(nrm, tan), bsum) < 0.0, -1.0, 1.0)
+    out[:, :3] = tan
+    out[:, 3] = sign
+    return out
 
 
 # --- implicit shapes ---------------------------------------------------------------------

@@ -182,6 +182,12 @@ class MeshPrim:
     display_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
     #: (n, 3) per-vertex colour when displayColor varies over the mesh, else None.
     vertex_colors: np.ndarray | None = None
+    #: (n, 2) texture coordinates (the st primvar the material reads), else None.
+    uvs: np.ndarray | None = None
+    #: (n, 4) object-space tangent (xyz) and bitangent sign (w), with ``uvs``.
+    tangents: np.ndarray | None = None
+    #: (n, 4) material primvars (float3 in xyz, float in w), else None.
+    attrs: np.ndarray | None = None
     material: str | None = None  # bound material path
     visible: bool = True
     #: Dynamic geometry is drawn into dynamic shadow maps only.
@@ -263,6 +269,18 @@ class TextureRef:
     owner: str = ""
 
 
+@dataclass(frozen=True)
+class PrimvarRef:
+    """A material input read from a mesh primvar (``UsdPrimvarReader_*``): the
+    primvar's value per vertex, interpolated; :attr:`fallback` where the mesh has no
+    such primvar (or it has the wrong size)."""
+
+    #: Primvar name without ``primvars:`` (``displayColor`` is the vertex colour).
+    name: str
+    fallback: tuple[float, ...] = (0.0, 0.0, 0.0)
+    owner: str = ""
+
+
 @dataclass
 class MaterialPrim:
     """A surface material in our model: UsdPreviewSurface's inputs (metallic or
@@ -286,8 +304,12 @@ class MaterialPrim:
     clearcoat: float = 0.0
     clearcoat_roughness: float = 0.01
     occlusion: float = 1.0
+    #: Tangent-space normal of an undriven ``normal`` input (unit; (0, 0, 1) = none).
+    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     #: Texture-driven inputs: input name -> lookup.
     textures: dict[str, TextureRef] = field(default_factory=dict)
+    #: Primvar-driven inputs (``UsdPrimvarReader_*``): input name -> primvar.
+    primvars: dict[str, PrimvarRef] = field(default_factory=dict)
     #: No readable surface: every value above is a default and a renderer should use
     #: the mesh's display colour instead (``warnings`` says why).
     uses_defaults: bool = False

@@ -28,7 +28,13 @@ from pxr import Sdf, Tf, Usd, UsdGeom, UsdShade
 from . import locators as loc
 from . import prims
 from .cameras import exposure_scale, read_camera
-from .geometry import MESH_TYPES, MeshGeometry, read_mesh_geometry
+from .geometry import (
+    DEFAULT_PRIMVARS,
+    MESH_TYPES,
+    MeshGeometry,
+    PrimvarRequest,
+    read_mesh_geometry,
+)
 from .instancing import (
     InstancerExpansion,
     expand_point_instancer,
@@ -180,6 +186,9 @@ class MaterialDataSource(_DataSource):
         return read_material(self.entry.prim, self.index.time)
 
 
+#: Material inputs a float3 primvar may drive (the others take a float).
+_COLOR_INPUTS = frozenset({"diffuseColor", "emissiveColor", "specularColor"})
+
 _DS_FOR_TYPE = {prims.MESH: MeshDataSource, prims.CAMERA: CameraDataSource}
 
 
@@ -220,7 +229,9 @@ class StageSceneIndex(SceneIndex):
         self._instancers: dict[str, InstancerExpansion] = {}
         #: prototype root path -> instancer paths that use it
         self._proto_users: dict[str, set[str]] = defaultdict(set)
-        self._geom_cache: dict[str, MeshGeometry | None] = {}
+        self._geom_cache: dict[tuple[str, PrimvarRequest], MeshGeometry | None] = {}
+        #: Scene path -> MaterialPrim read for primvar requests (see material_record).
+        self._material_cache: dict[str, prims.MaterialPrim | None] = {}
         self._pending = _Pending()
         self._update_frame()
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._on_changed, stage)
@@ -318,13 +329,50 @@ class StageSceneIndex(SceneIndex):
         tv = self._time_varying.get(e.path, ())
         return loc.XFORM in tv or loc.POINTS in tv or loc.INSTANCER in tv
 
+    def material_record(self, path: str | None) -> prims.MaterialPrim | None:
+        """The material at scene path ``path`` as its data source reads it (cached
+        until the next edit or time change), or None."""
+        if path is None:
+            return None
+        if path in self._material_cache:
+            return self._material_cache[path]
+        e = self._entries.get(path)
+        mp = None
+        if e is not None and e.prim_type == prims.MATERIAL:
+            try:
+                mp = e.ds.material()  # type: ignore[attr-defined]
+            except Exception:  # noqa: BLE001 - the material sprim reports it
+                mp = None
+        self._material_cache[path] = mp
+        return mp
+
+    def primvar_request(self, e: _Entry) -> PrimvarRequest:
+        """The primvars mesh ``e``'s bound material reads (texture coordinates first,
+        then ``st``; one float3 and one float ``UsdPrimvarReader`` primvar)."""
+        mpath = bound_material_path(e.prim) if e.prim is not None else None
+        mp = self.material_record(mpath)
+        if mp is None or (not mp.textures and not mp.primvars):
+            return DEFAULT_PRIMVARS
+        uv = tuple(dict.fromkeys((*mp.st_primvars, "st")))
+        vec3 = scalar = None
+        for name, ref in sorted(mp.primvars.items()):
+            if ref.name == "displayColor":
+                continue  # the vertex colour
+            if name in _COLOR_INPUTS:
+                vec3 = vec3 or ref.name
+            else:
+                scalar = scalar or ref.name
+        return PrimvarRequest(uv, vec3, scalar)
+
     def mesh_geometry(self, e: _Entry) -> MeshGeometry | None:
         prim = e.prim
-        key = str(prim.GetPrimInPrototype().GetPath()) if prim.IsInstanceProxy() else e.path
+        proto = str(prim.GetPrimInPrototype().GetPath()) if prim.IsInstanceProxy() else e.path
+        request = self.primvar_request(e)
+        key = (proto, request)
         if key in self._geom_cache and not self._is_tv_geometry(e):
             return self._geom_cache[key]
         try:
-            g = read_mesh_geometry(prim, self.time)
+            g = read_mesh_geometry(prim, self.time, request)
         except Exception as exc:  # noqa: BLE001 - bad geometry must not crash
             self._warn(f"mesh <{e.path}>: could not be read ({exc}); skipped")
             g = None
@@ -541,6 +589,7 @@ class StageSceneIndex(SceneIndex):
             return 0
         self.time = t
         self.xform_cache.SetTime(t)
+        self._material_cache.clear()
         refreshed = self._refresh_instancers(only_time_varying=True)
         entries = [
             DirtiedPrimEntry(p, frozenset(locs))
@@ -589,6 +638,7 @@ class StageSceneIndex(SceneIndex):
         pend, self._pending = self._pending, _Pending()
         if not (pend.resynced or pend.changed):
             return
+        self._material_cache.clear()
         resync_roots: set[str] = set()
         props: dict[str, set[str]] = defaultdict(set)
         for sp in pend.resynced:
@@ -664,7 +714,9 @@ class StageSceneIndex(SceneIndex):
             e = self._entries.pop(p, None)
             self._time_varying.pop(p, None)
             if e is not None and e.prim is not None:
-                self._geom_cache.pop(p, None)
+                for k in [k for k in self._geom_cache if k[0] == p]:
+                    del self._geom_cache[k]
+            self._material_cache.pop(p, None)
         self._sorted_valid = False
 
     def _resync_path(self, root: str) -> set[str]:

@@ -1,13 +1,18 @@
 """G-buffer task: linear depth (r32f), octahedral normal, base colour + roughness,
-F0 + metallic, motion vectors (px) and emission (nits) in one MRT pass."""
+F0 + metallic, motion vectors (px) and emission (nits) + occlusion in one MRT pass.
+
+Batches whose material reads textures, primvars, a normal map or cuts out draw with
+the ``HAS_MATERIAL_TEXTURES`` variant of the program (compiled only when a scene has
+such a batch); the others with the constant-only program."""
 
 from __future__ import annotations
 
 import moderngl
 
 from ..frame import FrameContext
-from ..gl import set_uniform, shader_library
+from ..gl import shader_library
 from ..graph import Imported, Rec, Tex
+from ..material_binding import bind_material, unbind_samplers
 from ..records import FrameBlock
 from .base import Pass
 
@@ -36,16 +41,21 @@ class GBufferTask(Pass):
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        prog = shader_library(ctx).program("gbuffer.vert", "gbuffer.frag")
+        lib = shader_library(ctx)
+        plain = lib.program("gbuffer.vert", "gbuffer.frag")
+        textured: moderngl.Program | None = None
         delegate = self.delegate
+        cache = delegate.textures
         for b in delegate.batches:
             m = b.material
-            set_uniform(prog, "u_base_color", m.base)
-            set_uniform(prog, "u_use_vertex_color", 1.0 if m.use_vertex_color else 0.0)
-            set_uniform(prog, "u_roughness", m.roughness)
-            set_uniform(prog, "u_metallic", m.metallic)
-            set_uniform(prog, "u_specular_workflow", 1.0 if m.specular_workflow else 0.0)
-            set_uniform(prog, "u_specular_color", m.specular_color)
-            set_uniform(prog, "u_emissive", m.emissive)
+            prog = plain
+            if m.textured:
+                if textured is None:
+                    defines: dict[str, object] = {"HAS_MATERIAL_TEXTURES": True}
+                    textured = lib.program("gbuffer.vert", "gbuffer.frag", defines)
+                prog = textured
+            bind_material(prog, m, cache)
             delegate.vertex_array(b, prog).render(moderngl.TRIANGLES, instances=b.count)
+        if textured is not None:
+            unbind_samplers(ctx)
         ctx.disable(moderngl.DEPTH_TEST)

@@ -9,8 +9,8 @@ import moderngl
 import numpy as np
 
 from ..camera import ViewSetup, look_at, orthographic
+from ..depth_draw import DepthDraw
 from ..frame import FrameContext
-from ..gl import set_uniform, shader_library
 from ..graph import Imported, Rec
 from ..records import DistantLights, SunShadowMap
 from .base import Pass
@@ -110,13 +110,11 @@ class SunShadowTask(Pass):
         self.fbo.clear(depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE)
-        prog = shader_library(ctx).program("depth_only.vert", "depth_only.frag")
-        set_uniform(prog, "u_light_view_proj", np.asarray(self._light_vp, dtype=np.float32))
+        draw = DepthDraw(ctx, "depth_only.vert", "depth_only.frag")
+        draw.set("u_light_view_proj", np.asarray(self._light_vp, dtype=np.float32))
         delegate = self.delegate
         for b in delegate.batches:
-            delegate.vertex_array(b, prog, depth_only=True).render(
-                moderngl.TRIANGLES, instances=b.count
-            )
+            draw.draw(delegate, b)
         ctx.disable(moderngl.DEPTH_TEST)
 
     def release(self) -> None:

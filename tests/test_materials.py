@@ -1,0 +1,463 @@
+"""Textured UsdPreviewSurface materials against closed forms (real files through OIIO,
+real GL): the albedo AOV equals the texture's linearised texels, wrap modes, colour
+spaces, UsdTransform2d, primvar readers, UDIM tiles, tangent-space normal maps
+(radiance ratio 1/cos 30 deg), cut-outs in the image and in shadows, bad files.
+
+Expected values come from the image files as written here and the closed-form
+pixel -> st mapping of ``material_scenes`` (an orthographic camera framing the quad),
+never from the renderer's own output.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from material_scenes import (
+    cells,
+    expected_st,
+    interior,
+    lookup_cells,
+    ortho_camera,
+    preview_material,
+    primvar_reader,
+    quad,
+    srgb_to_linear,
+    uv_texture,
+    write_image,
+    write_stage,
+)
+from pxr import Usd
+
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+
+W = H = 64
+#: UsdPreviewSurface inputs of a Lambertian surface (no specular lobe).
+LAMBERT = (
+    "        int inputs:useSpecularWorkflow = 1\n"
+    "        color3f inputs:specularColor = (0, 0, 0)\n"
+    "        color3f inputs:diffuseColor = ({rho}, {rho}, {rho})\n"
+)
+N_CELLS = 8
+CELL = 8
+
+
+def render_aovs(path, aovs=("albedo",), lighting="sun", w=W, h=H, **kw):
+    stage = Usd.Stage.Open(str(path))
+    eng = Engine(stage, RenderSettings(width=w, height=h, lighting=lighting, **kw))
+    try:
+        eng.request_aovs({"color", *aovs})
+        eng.render(None)
+        out = {k: np.array(eng.aovs[k]) for k in ("color", *aovs)}
+        return out, list(eng.delegate.warnings)
+    finally:
+        eng.release()
+
+
+def textured_quad(tmp_path, img, color_space="auto", tex_extra="", st_scale=1.0, nodes=""):
+    write_image(tmp_path / "tex.png", img)
+    body = (
+        ortho_camera()
+        + quad("Q", "M", st_scale=st_scale)
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture("T", "./tex.png", color_space=color_space, extra=tex_extra)
+            + (nodes or primvar_reader()),
+        )
+    )
+    return write_stage(tmp_path, body)
+
+
+@pytest.mark.parametrize(
+    ("color_space", "decode"),
+    [("sRGB", "srgb"), ("raw", "raw"), ("auto", "srgb")],
+)
+def test_albedo_equals_linearised_texels(tmp_path, gl_ctx, color_space, decode):
+    img = cells(N_CELLS, CELL)
+    path = textured_quad(
+        tmp_path,
+        img,
+        color_space,
+        st_scale=2.0,
+        tex_extra='        token inputs:wrapS = "repeat"\n        token inputs:wrapT = "repeat"\n',
+    )
+    out, warnings = render_aovs(path)
+    s, t = expected_st(W, H, 2.0)
+    v = img.astype(np.float64) / 255.0
+    exp_v = srgb_to_linear(v) if decode == "srgb" else v
+    exp = lookup_cells(exp_v, s % 1.0, t % 1.0)
+    got = out["albedo"][..., :3].astype(np.float64)
+    m = interior(s % 1.0, t % 1.0, N_CELLS)
+    err = np.abs(got - exp)[m]
+    assert np.median(err) <= 0.01, f"median |error| {np.median(err):.4f}"
+    assert np.percentile(err, 95) <= 0.02
+    assert not [w for w in warnings if "texture" in w], warnings
+
+
+def test_auto_single_channel_is_raw(tmp_path, gl_ctx):
+    """UsdUVTexture 'auto' (as Storm): 8-bit with 3-4 channels is sRGB, else raw."""
+    img = cells(N_CELLS, CELL, channels=1)
+    path = textured_quad(tmp_path, img, "auto")
+    out, _ = render_aovs(path)
+    s, t = expected_st(W, H)
+    exp = lookup_cells(img.astype(np.float64) / 255.0, s, t)  # (h, w, 1)
+    got = out["albedo"][..., :3].astype(np.float64)
+    m = interior(s, t, N_CELLS)
+    # 1 channel -> (r, r, r): every colour channel is the raw value.
+    assert np.median(np.abs(got - exp)[m]) <= 0.01
+
+
+def test_transform2d_rotates_scales_and_translates(tmp_path, gl_ctx):
+    img = cells(N_CELLS, CELL)
+    nodes = primvar_reader() + (
+        '    def Shader "X"\n    {\n        uniform token info:id = "UsdTransform2d"\n'
+        "        float2 inputs:in.connect = </M/P.outputs:result>\n"
+        "        float inputs:rotation = 90\n        float2 inputs:scale = (0.5, 0.5)\n"
+        "        float2 inputs:translation = (0.75, 0.25)\n        float2 outputs:result\n    }\n"
+    )
+    write_image(tmp_path / "tex.png", img)
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture("T", "./tex.png", st_source="X.outputs:result", color_space="raw")
+            + nodes,
+        )
+    )
+    out, _ = render_aovs(write_stage(tmp_path, body))
+    s, t = expected_st(W, H)
+    # The spec: scale, then rotate counter-clockwise, then translate.
+    a = math.radians(90.0)
+    ss, tt = 0.5 * s, 0.5 * t
+    u = math.cos(a) * ss - math.sin(a) * tt + 0.75
+    v = math.sin(a) * ss + math.cos(a) * tt + 0.25
+    assert u.min() > -1e-6 and u.max() < 1 + 1e-6 and v.min() > -1e-6 and v.max() < 1 + 1e-6
+    exp = lookup_cells(img.astype(np.float64) / 255.0, u, v)
+    got = out["albedo"][..., :3].astype(np.float64)
+    m = interior(u, v, N_CELLS)
+    assert m.sum() > 100
+    assert np.median(np.abs(got - exp)[m]) <= 0.01
+
+
+def _wrap(x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """(coordinate in [0, 1), inside) after a wrap mode, computed here."""
+    if mode == "repeat":
+        return x % 1.0, np.ones_like(x, bool)
+    if mode == "mirror":
+        f = x % 2.0
+        return np.where(f < 1.0, f, 2.0 - f), np.ones_like(x, bool)
+    inside = (x >= 0.0) & (x < 1.0)
+    return np.clip(x, 0.0, 1.0 - 1e-9), inside if mode == "black" else np.ones_like(x, bool)
+
+
+@pytest.mark.parametrize("mode", ["repeat", "mirror", "clamp", "black", "useMetadata"])
+def test_wrap_modes(tmp_path, gl_ctx, mode):
+    """st spans [-1, 2): each wrap mode's copy of the texture outside [0, 1)
+    (useMetadata on a PNG without wrap metadata is black, as in Storm)."""
+    img = cells(4, 16)
+    nodes = primvar_reader() + (
+        '    def Shader "X"\n    {\n        uniform token info:id = "UsdTransform2d"\n'
+        "        float2 inputs:in.connect = </M/P.outputs:result>\n"
+        "        float2 inputs:scale = (3, 3)\n        float2 inputs:translation = (-1, -1)\n"
+        "        float2 outputs:result\n    }\n"
+    )
+    extra = f'        token inputs:wrapS = "{mode}"\n        token inputs:wrapT = "{mode}"\n'
+    write_image(tmp_path / "tex.png", img)
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture(
+                "T", "./tex.png", st_source="X.outputs:result", color_space="raw", extra=extra
+            )
+            + nodes,
+        )
+    )
+    w = h = 96
+    out, _ = render_aovs(write_stage(tmp_path, body), w=w, h=h)
+    s, t = expected_st(w, h)
+    u_raw, v_raw = 3 * s - 1, 3 * t - 1
+    eff = "black" if mode == "useMetadata" else mode
+    u, iu = _wrap(u_raw, eff)
+    v, iv = _wrap(v_raw, eff)
+    exp = lookup_cells(img.astype(np.float64) / 255.0, u, v) * (iu & iv)[..., None]
+    got = out["albedo"][..., :3].astype(np.float64)
+    # Away from cell edges and from the quad's own unit-square edges (filter footprint).
+    m = interior(u_raw % 1.0, v_raw % 1.0, 4) & interior(u_raw, v_raw, 1, 0.05)
+    assert np.median(np.abs(got - exp)[m]) <= 0.01, mode
+
+
+def test_scale_bias_and_channel_outputs(tmp_path, gl_ctx):
+    """rgb from a 4-channel texture through scale/bias; roughness from its 'a' output."""
+    rng = np.random.default_rng(3)
+    img = np.repeat(np.repeat(rng.integers(0, 255, (4, 4, 4), dtype=np.uint8), 16, 0), 16, 1)
+    write_image(tmp_path / "tex.png", img)
+    extra = "        float4 inputs:scale = (0.5, 0.25, 1, 0.5)\n"
+    extra += "        float4 inputs:bias = (0.1, 0.2, 0, 0.25)\n"
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={
+                "color3f inputs:diffuseColor": "T.outputs:rgb",
+                "float inputs:roughness": "T.outputs:a",
+            },
+            nodes=uv_texture("T", "./tex.png", color_space="raw", extra=extra) + primvar_reader(),
+        )
+    )
+    out, _ = render_aovs(write_stage(tmp_path, body), aovs=("albedo",))
+    s, t = expected_st(W, H)
+    v = lookup_cells(img.astype(np.float64) / 255.0, s, t)
+    exp_rgb = np.clip(v[..., :3] * [0.5, 0.25, 1.0] + [0.1, 0.2, 0.0], 0, 1)
+    m = interior(s, t, 4)
+    got = out["albedo"][..., :3].astype(np.float64)
+    assert np.median(np.abs(got - exp_rgb)[m]) <= 0.01
+
+
+def test_primvar_reader_float3_drives_diffuse(tmp_path, gl_ctx):
+    """diffuseColor <- UsdPrimvarReader_float3 of a primvar with any name (per vertex)."""
+    colors = (
+        "    color3f[] primvars:tint = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0)] "
+        '(interpolation = "vertex")\n'
+    )
+    body = (
+        ortho_camera()
+        + quad("Q", "M", extra=colors)
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "P3.outputs:result"},
+            nodes=primvar_reader("P3", "tint", "float3"),
+        )
+    )
+    out, _ = render_aovs(write_stage(tmp_path, body))
+    s, t = expected_st(W, H)
+    corners = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)
+    # Two triangles (0,1,2), (0,2,3): barycentric interpolation on each.
+    lower = s >= t
+    exp = np.where(
+        lower[..., None],
+        corners[0] * (1 - s)[..., None]
+        + corners[1] * (s - t)[..., None]
+        + corners[2] * t[..., None],
+        corners[0] * (1 - t)[..., None]
+        + corners[2] * s[..., None]
+        + corners[3] * (t - s)[..., None],
+    )
+    got = out["albedo"][..., :3].astype(np.float64)
+    assert np.percentile(np.abs(got - exp), 95) <= 0.02
+
+
+def test_missing_texture_warns_once_and_uses_fallback(tmp_path, gl_ctx):
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture(
+                "T", "./nope.png", extra="        float4 inputs:fallback = (0.2, 0.4, 0.6, 1)\n"
+            )
+            + primvar_reader(),
+        )
+    )
+    out, warnings = render_aovs(write_stage(tmp_path, body))
+    got = out["albedo"][..., :3]
+    np.testing.assert_allclose(np.median(got.reshape(-1, 3), axis=0), [0.2, 0.4, 0.6], atol=2e-3)
+    msgs = [w for w in warnings if "nope.png" in w]
+    assert len(msgs) == 1 and "</M/T>" in msgs[0], warnings
+
+
+def test_corrupt_texture_warns_and_renders(tmp_path, gl_ctx):
+    (tmp_path / "bad.png").write_bytes(b"\x89PNG\r\n\x1a\nthis is not a png")
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture(
+                "T", "./bad.png", extra="        float4 inputs:fallback = (0.5, 0.5, 0.5, 1)\n"
+            )
+            + primvar_reader(),
+        )
+    )
+    out, warnings = render_aovs(write_stage(tmp_path, body))
+    assert np.isfinite(out["color"]).all()
+    np.testing.assert_allclose(np.median(out["albedo"][..., :3]), 0.5, atol=2e-3)
+    assert len([w for w in warnings if "bad.png" in w]) == 1, warnings
+
+
+def test_udim_tiles(tmp_path, gl_ctx):
+    """<UDIM>: tile 1001 at st [0,1)^2, 1002 at [1,2) x [0,1); 1011 missing -> fallback."""
+    a = np.full((16, 16, 3), (200, 20, 20), np.uint8)
+    b = np.full((16, 16, 3), (20, 200, 20), np.uint8)
+    write_image(tmp_path / "t.1001.png", a)
+    write_image(tmp_path / "t.1002.png", b)
+    write_image(tmp_path / "t.1012.png", a)  # makes the layer range cover 1011
+    extra = "        float4 inputs:fallback = (0, 0, 1, 1)\n"
+    body = (
+        ortho_camera()
+        + quad("Q", "M", st_scale=2.0)
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture("T", "./t.<UDIM>.png", color_space="raw", extra=extra)
+            + primvar_reader(),
+        )
+    )
+    out, warnings = render_aovs(write_stage(tmp_path, body))
+    got = out["albedo"][..., :3]
+    s, t = expected_st(W, H, 2.0)
+    m = interior(s, t, 2, 0.1)
+    pick = lambda sel: np.median(got[m & sel], axis=0)  # noqa: E731
+    np.testing.assert_allclose(pick((s < 1) & (t < 1)), np.array([200, 20, 20]) / 255, atol=0.01)
+    np.testing.assert_allclose(pick((s > 1) & (t < 1)), np.array([20, 200, 20]) / 255, atol=0.01)
+    np.testing.assert_allclose(pick((s < 1) & (t > 1)), [0, 0, 1], atol=0.01)  # 1011 missing
+    np.testing.assert_allclose(pick((s > 1) & (t > 1)), np.array([200, 20, 20]) / 255, atol=0.01)
+    assert not [w for w in warnings if "UDIM" in w or "t.<UDIM>" in w], warnings
+
+
+# --- normal maps --------------------------------------------------------------------------
+
+
+def _normal_scene(tmp_path, mapped: bool, tilt_deg: float = 30.0) -> str:
+    """A quad (+Z) under a distant light tilted ``tilt_deg`` towards +X (= +s); with
+    ``mapped`` its constant tangent-space normal map tilts the normal by the same angle
+    towards +u, so the mapped surface faces the light."""
+    a = math.radians(tilt_deg)
+    n = np.array([math.sin(a), 0.0, math.cos(a)])
+    texel = np.round((n * 0.5 + 0.5) * 65535).astype(np.uint16)
+    write_image(tmp_path / "n.png", np.broadcast_to(texel, (8, 8, 3)).copy())
+    inputs = LAMBERT.format(rho=0.5)
+    tex = {}
+    nodes = ""
+    if mapped:
+        tex = {"normal3f inputs:normal": "N.outputs:rgb"}
+        nodes = (
+            uv_texture(
+                "N",
+                "./n.png",
+                color_space="raw",
+                extra="        float4 inputs:scale = (2, 2, 2, 1)\n"
+                "        float4 inputs:bias = (-1, -1, -1, 0)\n",
+            )
+            + primvar_reader()
+        )
+    light = (
+        'def DistantLight "Sun"\n{\n    float inputs:intensity = 2\n'
+        "    float inputs:angle = 0.01\n    bool inputs:normalize = 1\n"
+        f"    float xformOp:rotateY = {tilt_deg:g}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:rotateY"]\n}\n'
+    )
+    body = ortho_camera() + quad("Q", "M") + preview_material("M", inputs, tex, nodes) + light
+    return str(write_stage(tmp_path, body, f"n_{int(mapped)}.usda"))
+
+
+@pytest.mark.parametrize("lighting", ["reference", "stb"])
+def test_normal_map_tilts_the_shading_normal(tmp_path, gl_ctx, lighting):
+    flat, _ = render_aovs(_normal_scene(tmp_path, False), aovs=(), lighting=lighting)
+    mapped, _ = render_aovs(_normal_scene(tmp_path, True), aovs=(), lighting=lighting)
+    ratio = np.median(mapped["color"][8:-8, 8:-8, 0]) / np.median(flat["color"][8:-8, 8:-8, 0])
+    assert ratio == pytest.approx(1.0 / math.cos(math.radians(30.0)), rel=0.04)
+
+
+def test_tangents_follow_st(gl_ctx):
+    """compute_tangents: +s on a quad whose st is rotated by 90 deg is -y in object
+    space... (closed form), with the bitangent along +t."""
+    from stb_hydra.scene.geometry import compute_tangents
+
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    nrm = np.tile([0, 0, 1], (4, 1)).astype(np.float32)
+    tris = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    # st rotated: s grows along +y, t along -x.
+    uv = np.array([[0, 1], [0, 0], [1, 0], [1, 1]], np.float32)
+    t = compute_tangents(pts, nrm, uv, tris)
+    np.testing.assert_allclose(t[:, :3], np.tile([0, 1, 0], (4, 1)), atol=1e-6)
+    b = t[:, 3:4] * np.cross(nrm, t[:, :3])
+    np.testing.assert_allclose(b, np.tile([-1, 0, 0], (4, 1)), atol=1e-6)
+    # Mirrored st (t flipped): the sign flips.
+    uv2 = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+    t2 = compute_tangents(pts, nrm, uv2, tris)
+    np.testing.assert_allclose(t2[:, 3], -1.0)
+
+
+# --- cut-outs -----------------------------------------------------------------------------
+
+
+def _cutout_scene(tmp_path) -> str:
+    """A 2x2-cell opacity checker quad (cut cells: opacity 0) 1 m above a floor quad,
+    lit straight down by a shadowed distant light; the camera looks down through it."""
+    chk = np.zeros((32, 32, 1), np.uint8)
+    chk[:16, :16] = 255
+    chk[16:, 16:] = 255
+    write_image(tmp_path / "op.png", chk)
+    top = preview_material(
+        "Top",
+        "        color3f inputs:diffuseColor = (0.9, 0.1, 0.1)\n"
+        "        float inputs:opacityThreshold = 0.5\n",
+        {"float inputs:opacity": "T.outputs:r"},
+        uv_texture("T", "./op.png", material="Top", color_space="raw") + primvar_reader(),
+    )
+    floor = preview_material("Floor", LAMBERT.format(rho=0.5))
+    light = (
+        'def DistantLight "Sun"\n{\n    float inputs:intensity = 3\n'
+        "    float inputs:angle = 0.01\n    bool inputs:normalize = 1\n}\n"
+    )
+    body = (
+        ortho_camera(z=5.0)
+        + quad("Checker", "Top", z=1.0)
+        + quad("Ground", "Floor", x0=-1.0, y0=-1.0, size=3.0, z=0.0)
+        + top
+        + floor
+        + light
+    )
+    return str(write_stage(tmp_path, body))
+
+
+def test_cutout_shows_floor_through_holes_and_in_shadow(tmp_path, gl_ctx):
+    """Cut cells show the floor (grey), kept cells the red top; the light shines
+    through the cut cells onto the floor (alpha-tested shadow map): tilt the camera
+    view to the floor under the cells via a second camera-free check -- the floor
+    region seen through a cut cell is lit as an unshadowed floor."""
+    out, warnings = render_aovs(_cutout_scene(tmp_path), aovs=("albedo",), lighting="reference")
+    alb = out["albedo"][..., :3]
+    s, t = expected_st(W, H)
+    m = interior(s, t, 2, 0.15)
+    kept = ((s < 0.5) & (t > 0.5)) | ((s > 0.5) & (t < 0.5))  # image rows top first
+    np.testing.assert_allclose(np.median(alb[m & kept], axis=0), [0.9, 0.1, 0.1], atol=0.01)
+    np.testing.assert_allclose(np.median(alb[m & ~kept], axis=0), [0.5, 0.5, 0.5], atol=0.01)
+    # The floor seen through a cut cell is lit (its shadow has the same hole): radiance
+    # = albedo / pi * E (E = 3 lux straight down, the floor faces the light).
+    col = out["color"][..., 0]
+    lit = 0.5 / math.pi * 3.0
+    assert np.median(col[m & ~kept]) == pytest.approx(lit, rel=0.03)
+    assert not [w for w in warnings if "material" in w], warnings
+
+
+def test_cutout_shadow_pattern_on_floor(tmp_path, gl_ctx):
+    """Seen from beside the checker (camera framing only the floor next to... ): the
+    shadow of a cut-out checker on the floor has its holes."""
+    path = _cutout_scene(tmp_path)
+    text = open(path).read()
+    # Move the camera below the checker (between it and the floor): it sees the floor
+    # alone, with the checker's shadow pattern.
+    text = text.replace(
+        "double3 xformOp:translate = (0.5, 0.5, 5)", "double3 xformOp:translate = (0.5, 0.5, 0.5)"
+    )
+    (tmp_path / "below.usda").write_text(text)
+    out, _ = render_aovs(tmp_path / "below.usda", aovs=(), lighting="reference")
+    col = out["color"][..., 0]
+    s, t = expected_st(W, H)
+    m = interior(s, t, 2, 0.15)
+    kept = ((s < 0.5) & (t > 0.5)) | ((s > 0.5) & (t < 0.5))
+    lit = 0.5 / math.pi * 3.0
+    assert np.median(col[m & ~kept]) == pytest.approx(lit, rel=0.03)  # through the holes
+    assert np.median(col[m & kept]) < 0.02 * lit  # under the kept cells: shadow
