@@ -28,7 +28,7 @@ from material_scenes import (
     write_image,
     write_stage,
 )
-from pxr import Usd
+from pxr import Sdf, Usd
 
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
@@ -461,3 +461,108 @@ def test_cutout_shadow_pattern_on_floor(tmp_path, gl_ctx):
     lit = 0.5 / math.pi * 3.0
     assert np.median(col[m & ~kept]) == pytest.approx(lit, rel=0.03)  # through the holes
     assert np.median(col[m & kept]) < 0.02 * lit  # under the kept cells: shadow
+
+
+# --- change tracking ----------------------------------------------------------------------
+
+
+def test_editing_one_texture_path_reloads_only_that_texture(tmp_path, gl_ctx):
+    """Two textured inputs (diffuse, roughness); the diffuse file's asset path is
+    edited on the open stage: the next frame shows the new image and loads exactly one
+    texture; the roughness texture stays on the GPU."""
+    a = np.full((8, 8, 3), (200, 10, 10), np.uint8)
+    b = np.full((8, 8, 3), (10, 10, 200), np.uint8)
+    r = np.full((8, 8, 1), 128, np.uint8)
+    for name, img in (("a.png", a), ("b.png", b), ("r.png", r)):
+        write_image(tmp_path / name, img)
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            textures={
+                "color3f inputs:diffuseColor": "T.outputs:rgb",
+                "float inputs:roughness": "R.outputs:r",
+            },
+            nodes=uv_texture("T", "./a.png", color_space="raw")
+            + uv_texture("R", "./r.png", color_space="raw")
+            + primvar_reader(),
+        )
+    )
+    stage = Usd.Stage.Open(str(write_stage(tmp_path, body)))
+    eng = Engine(stage, RenderSettings(width=16, height=16, lighting="sun"))
+    try:
+        eng.request_aovs({"color", "albedo"})
+        eng.render(None)
+        np.testing.assert_allclose(np.median(eng.aovs["albedo"][..., 0]), 200 / 255, atol=0.01)
+        cache = eng.delegate.textures
+        loads = cache.stats["loads"]
+        rough = next(t for k, t in cache.textures.items() if k.file.endswith("r.png"))
+        stage.GetPrimAtPath("/M/T").GetAttribute("inputs:file").Set(Sdf.AssetPath("./b.png"))
+        eng.render(None)
+        np.testing.assert_allclose(np.median(eng.aovs["albedo"][..., 2]), 200 / 255, atol=0.01)
+        assert cache.stats["loads"] == loads + 1
+        still = next(t for k, t in cache.textures.items() if k.file.endswith("r.png"))
+        assert still is rough  # the same GPU texture: not reloaded
+        assert not [k for k in cache.textures if k.file.endswith("a.png")]  # freed
+    finally:
+        eng.release()
+
+
+def test_changed_image_file_reloads(tmp_path, gl_ctx):
+    """The previewer's file watcher calls ``reload_textures`` for a changed image: the
+    next frame shows the new pixels."""
+    write_image(tmp_path / "a.png", np.full((8, 8, 3), (200, 10, 10), np.uint8))
+    path = textured_quad(tmp_path, cells(1, 8), "raw")  # writes tex.png
+    write_image(tmp_path / "tex.png", np.full((8, 8, 3), (10, 200, 10), np.uint8))
+    stage = Usd.Stage.Open(str(path))
+    eng = Engine(stage, RenderSettings(width=16, height=16, lighting="sun"))
+    try:
+        eng.request_aovs({"color", "albedo"})
+        eng.render(None)
+        np.testing.assert_allclose(np.median(eng.aovs["albedo"][..., 1]), 200 / 255, atol=0.01)
+        write_image(tmp_path / "tex.png", np.full((8, 8, 3), (10, 10, 200), np.uint8))
+        assert eng.delegate.reload_textures({str(tmp_path / "tex.png")}) == 1
+        eng.render(None)
+        np.testing.assert_allclose(np.median(eng.aovs["albedo"][..., 2]), 200 / 255, atol=0.01)
+    finally:
+        eng.release()
+
+
+def test_previewer_material_panel_records(tmp_path, gl_ctx):
+    """The previewer's Materials panel: each input as a constant / texture / fallback,
+    the texture as loaded on the GPU, and the warnings of what fell back."""
+    from stb_hydra.preview.session import PreviewSession
+
+    img = cells(2, 8)
+    write_image(tmp_path / "tex.png", img)
+    body = (
+        ortho_camera()
+        + quad("Q", "M")
+        + preview_material(
+            "M",
+            "        float inputs:roughness = 0.25\n",
+            {
+                "color3f inputs:diffuseColor": "T.outputs:rgb",
+                "float inputs:metallic": "Gone.outputs:r",
+            },
+            uv_texture("T", "./tex.png") + uv_texture("Gone", "./gone.png") + primvar_reader(),
+        )
+    )
+    s = PreviewSession(write_stage(tmp_path, body), RenderSettings(width=32, height=32,
+                       lighting="sun"), ctx=gl_ctx)
+    assert s.error is None, s.error
+    try:
+        s.step()
+        (rec,) = s.materials()
+        rows = {name: (kind, text) for name, kind, text in rec["inputs"]}
+        assert rec["source"] == "UsdPreviewSurface" and rec["meshes"] == 1
+        assert rows["diffuseColor"][0] == "texture"
+        assert "tex.png" in rows["diffuseColor"][1] and "16x16" in rows["diffuseColor"][1]
+        assert "sRGB" in rows["diffuseColor"][1]  # auto on an 8-bit RGB file
+        assert rows["roughness"] == ("constant", "0.25")
+        assert rows["metallic"][0] == "constant"  # the missing file's fallback
+        assert any("gone.png" in w for w in rec["warnings"])
+        assert ("material", "/M") in s.properties("/Q")
+    finally:
+        s.release()

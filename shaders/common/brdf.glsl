@@ -11,6 +11,7 @@ struct Surface {
     vec3 f0;       // specular reflectance at normal incidence
     float alpha;   // GGX alpha = roughness^2 (clamped)
     float roughness;
+    float occlusion;  // ambient occlusion of the dome term (material occlusion input)
 };
 
 float ggx_d(float NoH, float a) {

@@ -9,7 +9,7 @@ uniform sampler2D g_depth;      // r32f linear view depth (m), 0 = background
 uniform sampler2D g_normal;     // rg16f octahedral world normal
 uniform sampler2D g_base_rough; // rgba16f base colour, roughness
 uniform sampler2D g_f0_metal;   // rgba16f F0, metallic
-uniform sampler2D g_emission;   // rgba16f emitted radiance (nits)
+uniform sampler2D g_emission;   // rgba16f rgb emitted radiance (nits), a occlusion
 
 // Position and normal only (2 fetches): false for background pixels.
 bool read_geometry(ivec2 px, out vec3 P, out vec3 N) {
@@ -34,6 +34,11 @@ bool read_surface(ivec2 px, out Surface s) {
     s.alpha = max(s.roughness * s.roughness, LIM_GGX_ALPHA_MIN);
     s.diffuse = br.rgb * (1.0 - fm.a);
     s.f0 = fm.rgb;
+#ifdef HAS_AMBIENT
+    s.occlusion = texelFetch(g_emission, px, 0).a;  // passes with a dome bind g_emission
+#else
+    s.occlusion = 1.0;
+#endif
     return true;
 }
 #endif

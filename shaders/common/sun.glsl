@@ -46,7 +46,7 @@ vec3 sun_and_ambient(Surface s) {
 #endif
 #ifdef HAS_AMBIENT
     float NoV = max(dot(s.N, s.V), 1e-4);
-    c += u_ambient.rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV));
+    c += u_ambient.rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV)) * s.occlusion;
 #endif
     return c;
 }

@@ -98,6 +98,9 @@ def draw_controls(s: PreviewSession, ps: PanelState, size: tuple[int, int]) -> N
         if imgui.begin_tab_item("Prims")[0]:
             _prims_tab(s, ps)
             imgui.end_tab_item()
+        if imgui.begin_tab_item("Materials")[0]:
+            _materials_tab(s)
+            imgui.end_tab_item()
         if imgui.begin_tab_item("Time")[0]:
             _time_tab(s)
             imgui.end_tab_item()
@@ -223,6 +226,25 @@ def _prims_tab(s: PreviewSession, ps: PanelState) -> None:
         ps.last_saved = f"saved {out}" if out else ""
     if ps.last_saved:
         imgui.text_colored(_GREY, ps.last_saved)
+
+
+def _materials_tab(s: PreviewSession) -> None:
+    """Each material: its source, every input (constant / texture / primvar, with what
+    the texture became on the GPU) and what fell back."""
+    for rec in s.materials():
+        imgui.push_id(rec["path"])
+        label = f"{rec['path']}  ({rec['source']}, {rec['meshes']} meshes)"
+        if imgui.tree_node(label):
+            for name, kind, text in rec["inputs"]:
+                imgui.text_colored(_GREY, name)
+                imgui.same_line(140.0)
+                imgui.text(f"{kind}: {text}" if kind != "constant" else text)
+            for w in rec["warnings"]:
+                imgui.text_colored(_RED, w)
+            for n in rec["notes"]:
+                imgui.text_colored(_GREY, n)
+            imgui.tree_pop()
+        imgui.pop_id()
 
 
 def _tree(s: PreviewSession, path: str) -> None:

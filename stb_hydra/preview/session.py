@@ -136,6 +136,12 @@ class PreviewSession:
         self._changed_at = 0.0
         #: Layer reloads done (live reload).
         self.reloads = 0
+        #: Texture-file reloads done (live reload of changed images).
+        self.texture_reloads = 0
+        self._watch_files: set[str] = set()
+        self._watch_dirs: set[str] = set()
+        self._watch_handler: Any = None
+        self._watch_loads: float = -1
         self._time: float | None = time
         self._time_changed = False
         settings.temporal = "accumulate" if temporal == "auto" else temporal
@@ -176,28 +182,53 @@ class PreviewSession:
         except ImportError:
             self.message = "live reload needs watchdog (the preview extra)"
             return False
-        files = {
-            os.path.realpath(layer.realPath)
-            for layer in self.stage.GetUsedLayers()
-            if layer.realPath and not layer.anonymous
-        }
+        files = self._watched_files()
         session = self
 
         class _Handler(FileSystemEventHandler):
             def on_any_event(self, event: FileSystemEvent) -> None:
                 for p in (event.src_path, getattr(event, "dest_path", "")):
-                    if p and os.path.realpath(os.fsdecode(p)) in files:
+                    if not p:
+                        continue
+                    real = os.path.realpath(os.fsdecode(p))
+                    if real in session._watch_files:
                         with session._lock:
-                            session._changed_files.add(os.path.realpath(os.fsdecode(p)))
+                            session._changed_files.add(real)
                             session._changed_at = _time.monotonic()
 
+        self._watch_files = files
+        self._watch_handler = _Handler()
         obs = Observer()
         for d in sorted({os.path.dirname(f) for f in files}):
-            obs.schedule(_Handler(), d, recursive=False)
+            obs.schedule(self._watch_handler, d, recursive=False)
+            self._watch_dirs.add(d)
         obs.daemon = True
         obs.start()
         self._observer = obs
         return True
+
+    def _watched_files(self) -> set[str]:
+        """The stage's layer files and the texture files the renderer reads."""
+        files = {
+            os.path.realpath(layer.realPath)
+            for layer in self.stage.GetUsedLayers()
+            if layer.realPath and not layer.anonymous
+        }
+        if self.engine is not None:
+            files |= {os.path.realpath(p) for p in self.engine.delegate.texture_files()}
+        return files
+
+    def _rewatch(self) -> None:
+        """Textures (and layers) that appeared since the watch began are watched too."""
+        if self._observer is None:
+            return
+        files = self._watched_files()
+        if files <= self._watch_files:
+            return
+        self._watch_files = self._watch_files | files
+        for d in sorted({os.path.dirname(f) for f in files} - self._watch_dirs):
+            self._observer.schedule(self._watch_handler, d, recursive=False)
+            self._watch_dirs.add(d)
 
     def _reload_changed(self) -> None:
         """Reload the layers whose files changed (after RELOAD_SETTLE_S of quiet)."""
@@ -210,10 +241,17 @@ class PreviewSession:
                 return
             changed, self._changed_files = self._changed_files, set()
         errors = []
-        for layer in self.stage.GetUsedLayers():
-            real = os.path.realpath(layer.realPath) if layer.realPath else ""
-            if real not in changed:
-                continue
+        layers = {
+            os.path.realpath(layer.realPath): layer
+            for layer in self.stage.GetUsedLayers()
+            if layer.realPath
+        }
+        textures = changed - set(layers)
+        if textures and self.engine is not None:
+            self.engine.delegate.reload_textures(textures)
+            self.texture_reloads += 1
+        touched = [(real, layer) for real, layer in layers.items() if real in changed]
+        for real, layer in touched:
             try:
                 ok = layer.Reload(force=True)
             except Tf.ErrorException as exc:
@@ -222,7 +260,8 @@ class PreviewSession:
                 continue
             if not ok:
                 errors.append(f"cannot reload '{real}': unreadable or missing")
-        self.reloads += 1
+        if touched:
+            self.reloads += 1
         if errors:
             self.message = "; ".join(errors) + " (showing the last good scene)"
         elif self.message and "cannot reload" in self.message:
@@ -309,6 +348,10 @@ class PreviewSession:
         assert e is not None
         if self._observer is not None:
             self._reload_changed()
+            loads = e.delegate.textures.stats["loads"]
+            if loads != self._watch_loads:  # new textures: watch their files too
+                self._watch_loads = loads
+                self._rewatch()
         moving = bool(
             self._camera_dirty
             or self._scene_dirty
@@ -702,6 +745,15 @@ class PreviewSession:
             )
         return out
 
+    def materials(self) -> list[dict[str, Any]]:
+        """The Materials panel's records (``preview.materials_view``)."""
+        from .materials_view import material_records
+
+        if not self.ok:
+            return []
+        assert self.engine is not None
+        return material_records(self.engine.delegate)
+
     def set_light(
         self,
         path: str,
@@ -829,6 +881,9 @@ class PreviewSession:
                 rows.append(("range [m]", _fmt(float(rng))))
             if lp.ies_asset:
                 rows.append(("IES", str(lp.ies_file or lp.ies_asset)))
+        rp = self.engine.delegate.meshes.get(path)
+        if rp is not None and rp.mesh is not None:
+            rows.append(("material", rp.mesh.material or "(display colour)"))
         t = Usd.TimeCode(self.engine.scene_index.time)
         for a in prim.GetAttributes():
             if not a.HasAuthoredValue():

@@ -230,6 +230,30 @@ class GLRenderDelegate(RenderDelegate):
         """What groups meshes into one instanced draw batch."""
         return (mesh.geometry_key or path, self.resolve_material(mesh).key(), mesh.dynamic)
 
+    def texture_files(self) -> set[str]:
+        """Files of the textures in use (every tile of a UDIM set), resolved paths."""
+        out: set[str] = set()
+        for key in self.textures.textures:
+            info = self.textures.info(key.file)
+            out.update(p for p, _t in info.layers) if info is not None else out.add(key.file)
+        return out
+
+    def reload_textures(self, paths: set[str]) -> int:
+        """Files changed on disk: reload the textures that read them on the next commit
+        (the others stay on the GPU). Returns how many textures will reload."""
+        hit = 0
+        for key in list(self.textures.textures):
+            info = self.textures.info(key.file)
+            files = {p for p, _t in info.layers} if info is not None else {key.file}
+            if files & paths:
+                self.textures.forget_file(key.file)
+                hit += 1
+        for p in paths:
+            self.textures.forget_file(p)  # also a texture that failed to load before
+        if hit or paths:
+            self._batches_dirty = True
+        return hit
+
     def _commit_textures(self) -> None:
         """Plan (budget) and load the textures the batches read; free the rest."""
         need: dict[TextureKey, str] = {}

@@ -273,7 +273,7 @@ class TextureCache:
         self._dummy: moderngl.TextureArray | None = None
         self.warnings: list[str] = []
         self._warned: set[str] = set()
-        self.stats = {"loads": 0, "load_seconds": 0.0}
+        self.stats: dict[str, float] = {"loads": 0, "load_seconds": 0.0}
 
     @property
     def colors(self) -> TextureColorSpaces:

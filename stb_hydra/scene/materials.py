@@ -405,6 +405,8 @@ def read_preview_surface(shader: UsdShade.Shader, time: Usd.TimeCode, mp: Materi
         src, _o, const = _source_of(disp)
         if src is not None or _scalar(const if const is not None else 0.0, -1e30, 1e30, 0.0):
             w.append("displacement is not rendered")
+    if mp.opacity_threshold <= 0.0 and (mp.opacity < 1.0 or "opacity" in mp.textures):
+        w.append("translucent opacity is drawn opaque (cut-outs need opacityThreshold > 0)")
     if mp.clearcoat > 0.0 or "clearcoat" in mp.textures:
         mp.notes.append(
             f"material <{mp.path}>: clearcoat is read but the BRDF has no coat lobe yet"
