@@ -549,8 +549,9 @@ def test_previewer_material_panel_records(tmp_path, gl_ctx):
             uv_texture("T", "./tex.png") + uv_texture("Gone", "./gone.png") + primvar_reader(),
         )
     )
-    s = PreviewSession(write_stage(tmp_path, body), RenderSettings(width=32, height=32,
-                       lighting="sun"), ctx=gl_ctx)
+    s = PreviewSession(
+        write_stage(tmp_path, body), RenderSettings(width=32, height=32, lighting="sun"), ctx=gl_ctx
+    )
     assert s.error is None, s.error
     try:
         s.step()
@@ -566,3 +567,49 @@ def test_previewer_material_panel_records(tmp_path, gl_ctx):
         assert ("material", "/M") in s.properties("/Q")
     finally:
         s.release()
+
+
+def test_bake_honours_cutout_shadows(tmp_path, gl_ctx):
+    """``stb bake`` of a static point light above the cut-out checker: the floor's
+    lightmap has the checker's holes. The baked image (reference method, the camera
+    under the checker looking at the floor) against the closed form I cos / d^2 where
+    the ray to the light passes a cut cell, 0 where a kept cell blocks it."""
+    from stb_hydra.bake import bake_stage
+
+    text = open(_cutout_scene(tmp_path)).read()
+    text = text[: text.index("def DistantLight")] + (
+        'def SphereLight "L" (\n    prepend apiSchemas = ["StbLightAPI"]\n)\n{\n'
+        "    float inputs:intensity = 30000\n    float inputs:radius = 0.01\n"
+        "    float inputs:specular = 0\n    bool treatAsPoint = 1\n"
+        '    uniform token stb:mobility = "static"\n'
+        "    double3 xformOp:translate = (0.5, 0.5, 3)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    text = text.replace(
+        "double3 xformOp:translate = (0.5, 0.5, 5)", "double3 xformOp:translate = (0.5, 0.5, 0.5)"
+    )
+    src = tmp_path / "src.usda"
+    src.write_text(text)
+    rep = bake_stage(
+        src,
+        tmp_path / "baked.usda",
+        texel_density=24.0,
+        cache_dir=tmp_path / "cache",
+        progress=False,
+    )
+    assert "/Ground" in rep.meshes
+    out, _ = render_aovs(tmp_path / "baked.usda", aovs=(), lighting="reference")
+    col = out["color"][..., 0].astype(np.float64)
+    s, t = expected_st(W, H)  # the floor point (x, y) = (s, t) at z = 0
+    lpos = np.array([0.5, 0.5, 3.0])
+    I = 30000 * math.pi * 0.01**2
+    d = np.stack([lpos[0] - s, lpos[1] - t, np.full_like(s, lpos[2])], -1)
+    dist = np.linalg.norm(d, axis=-1)
+    exp_lit = 0.5 / math.pi * I * d[..., 2] / dist**3
+    # Where the ray to the light crosses the checker plane z = 1 (1/3 of the way up).
+    hx, hy = s + (lpos[0] - s) / 3.0, t + (lpos[1] - t) / 3.0
+    kept = ((hx < 0.5) & (hy > 0.5)) | ((hx > 0.5) & (hy < 0.5))
+    m = interior(hx, hy, 2, 0.2)
+    rel = np.abs(col - exp_lit) / exp_lit
+    assert np.median(rel[m & ~kept]) < 0.03, np.median(rel[m & ~kept])
+    assert np.median(col[m & kept] / exp_lit[m & kept]) < 0.05
