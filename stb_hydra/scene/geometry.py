@@ -59,12 +59,13 @@ class PrimvarRequest:
     coordinates (``uv``: the first of these names the mesh has) and up to one float3
     (``vec3``) and one float (``scalar``) primvar for ``UsdPrimvarReader`` inputs."""
 
-    uv: tuple[str, ...] = ("st",)
+    uv: tuple[str, ...] = ()
     vec3: str | None = None
     scalar: str | None = None
 
 
-#: The request of a mesh whose material reads nothing special: ``st`` if it exists.
+#: The request of a mesh whose material reads no texture or primvar: nothing beyond
+#: points, normals and displayColor (no texture coordinates are kept or uploaded).
 DEFAULT_PRIMVARS = PrimvarRequest()
 
 
