@@ -77,7 +77,7 @@ def strip_textures(eng) -> None:
             m.textures.clear()
             m.primvars.clear()
             m.normal = np.array([0.0, 0.0, 1.0])
-    d._batches_dirty = True  # noqa: SLF001 - a benchmark's baseline
+    d._batches_dirty = True
     d.commit_resources()
 
 
