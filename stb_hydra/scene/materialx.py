@@ -601,6 +601,7 @@ class _Ctx:
     def input(self, node: Any, name: str, fallback: Vec = (0.0,)) -> Value:
         """``node.name`` reduced to a constant or one texture lookup; anything else is
         its constant (value or default) and one warning naming the node."""
+        src: Any = None
         try:
             src = node.source(name)
             if isinstance(src, _Conn):
@@ -611,6 +612,9 @@ class _Ctx:
         except _Unreducible as exc:
             c = self.const(node, name, fallback)
             where = exc.node or node.label
+            if isinstance(src, _Conn):
+                first = f"<{src.node.category} '{src.node.label}'>"
+                where = first if where == first else f"{first} via {where}"
             self.warn(
                 f"input '{name}' is driven by {where} ({exc.why}), not one texture lookup; "
                 f"using the constant {_fmt(c)}"
@@ -1311,7 +1315,7 @@ def read_usd_materialx(prim: Usd.Prim, time: Usd.TimeCode) -> MaterialPrim | Non
     ``ND_UsdPreviewSurface_surfaceshader``, ...) -> :class:`MaterialPrim`; None when it
     is not a MaterialX network (the caller reads it as UsdPreviewSurface)."""
     try:
-        src = UsdShade.Material(prim).ComputeSurfaceSource(["mtlx"])
+        src = UsdShade.Material(prim).ComputeSurfaceSource("mtlx")  # else universal
         shader = src[0] if src and src[0] else None
     except Exception:  # noqa: BLE001
         return None
