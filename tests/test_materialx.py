@@ -388,6 +388,47 @@ def test_unreducible_graph_falls_back_to_the_constant_with_one_warning(tmp_path:
     assert "noise3d" in w_rough and "grain" in w_rough
 
 
+def test_malformed_graphs_warn_and_never_crash(tmp_path: Path):
+    touch(tmp_path / "x.png")
+    doc = tmp_path / "f.mtlx"
+    doc.write_text("""<?xml version="1.0"?>
+<materialx version="1.38">
+  <nodegraph name="NG">
+    <add name="a" type="float"><input name="in1" type="float" nodename="b" /></add>
+    <add name="b" type="float"><input name="in1" type="float" nodename="a" /></add>
+    <image name="img" type="color3"><input name="file" type="filename" value="x.png" /></image>
+    <output name="cyc" type="float" nodename="a" />
+    <output name="col" type="color3" nodename="img" channels="rrr" />
+  </nodegraph>
+  <standard_surface name="S1" type="surfaceshader">
+    <input name="specular_roughness" type="float" nodegraph="NG" output="cyc" />
+    <input name="metalness" type="float" nodegraph="NG" output="nothere" />
+    <input name="base_color" type="color3" nodegraph="NG" output="col" />
+    <input name="coat" type="float" nodename="ghost" />
+  </standard_surface>
+  <surfacematerial name="M1" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="S1" />
+  </surfacematerial>
+  <open_pbr_surface name="O" type="surfaceshader" />
+  <surfacematerial name="M2" type="material">
+    <input name="surfaceshader" type="surfaceshader" nodename="O" />
+  </surfacematerial>
+</materialx>
+""")
+    mp = material(doc, "M1")
+    assert not mp.uses_defaults
+    # 1.38's channels="rrr" (upgraded to a combine of extracts): one channel, broadcast.
+    d = mp.textures["diffuseColor"]
+    assert d.channels == "r" and d.file == str(tmp_path / "x.png")
+    assert mp.roughness == pytest.approx(0.2) and mp.metallic == 0.0 and mp.clearcoat == 0.0
+    assert len(mp.warnings) == 3, mp.warnings
+    assert any("cycle" in w and "specular_roughness" in w for w in mp.warnings)
+    assert any("ghost" in w for w in mp.warnings) and any("nothere" in w for w in mp.warnings)
+    other = material(doc, "M2")
+    assert other.uses_defaults and len(other.warnings) == 1
+    assert "open_pbr_surface" in other.warnings[0]
+
+
 def test_usd_preview_surface_node_maps_one_to_one(tmp_path: Path):
     body = shader_material(
         "Preview",

@@ -562,6 +562,8 @@ _USD_WRAP.update({"black": "black", "useMetadata": "useMetadata"})
 _SEPARATE_OUT = {"outx": 0, "outy": 1, "outz": 2, "outw": 3}
 _SEPARATE_OUT.update({"outr": 0, "outg": 1, "outb": 2, "outa": 3})
 _USD_UV_OUT = {"r": "r", "g": "g", "b": "b", "a": "a", "rgb": "rgb", "rgba": "rgba"}
+#: Longest node chain followed (a cycle ends there).
+_MAX_DEPTH = 64
 #: Nodes that pass their ``in`` through unchanged.
 _PASSTHROUGH = ("dot",)
 
@@ -574,6 +576,7 @@ class _Ctx:
         self.warnings: list[str] = []
         self.notes: list[str] = []
         self.normal_tangent = False
+        self._depth = 0
 
     def warn(self, msg: str) -> None:
         line = f"{self.label}: {msg}"
@@ -624,6 +627,15 @@ class _Ctx:
 
     # -- nodes --
     def eval(self, conn: _Conn) -> Value:
+        if self._depth > _MAX_DEPTH:
+            raise _Unreducible(f"<{conn.node.category} '{conn.node.label}'>", "a cycle")
+        self._depth += 1
+        try:
+            return self._eval(conn)
+        finally:
+            self._depth -= 1
+
+    def _eval(self, conn: _Conn) -> Value:
         node = conn.node
         cat = node.category
         where = f"<{cat} '{node.label}'>"
@@ -661,9 +673,21 @@ class _Ctx:
             return _pick(self._value(node, "in"), i, where)
         if cat in ("combine2", "combine3", "combine4"):
             parts = [self._value(node, f"in{i}") for i in range(1, int(cat[-1]) + 1)]
-            if any(isinstance(p, _Tex) for p in parts):
-                raise _Unreducible(where, "a combine of texture channels")
-            return tuple(x for p in parts for x in p)  # type: ignore[union-attr]
+            texs = [p for p in parts if isinstance(p, _Tex)]
+            if not texs:
+                return tuple(x for p in parts for x in p)  # type: ignore[union-attr]
+            t0 = texs[0]
+            if len(texs) < len(parts) or any(
+                (t.ref, t.default) != (t0.ref, t0.default) for t in texs
+            ):
+                raise _Unreducible(where, "a combine of texture channels and other values")
+            # Channels of one lookup (a 1.38 ``channels`` swizzle upgrades to this).
+            return replace(
+                t0,
+                chan="".join(t.chan for t in texs),
+                scale=tuple(x for t in texs for x in t.scale),
+                bias=tuple(x for t in texs for x in t.bias),
+            )
         if cat == "normalmap":
             return self._normalmap(node, where)
         raise _Unreducible(where, f"'{cat}' is not a node we reduce")
@@ -717,6 +741,15 @@ class _Ctx:
         return self._st_of(src)
 
     def _st_of(self, conn: _Conn) -> tuple[str, Affine]:
+        if self._depth > _MAX_DEPTH:
+            raise _Unreducible(f"<{conn.node.category} '{conn.node.label}'>", "a cycle")
+        self._depth += 1
+        try:
+            return self._st_of_node(conn)
+        finally:
+            self._depth -= 1
+
+    def _st_of_node(self, conn: _Conn) -> tuple[str, Affine]:
         node = conn.node
         cat = node.category
         where = f"<{cat} '{node.label}'>"
@@ -1147,9 +1180,17 @@ class MtlxDocument:
         )
 
     def _translate(self, name: str) -> MaterialPrim:
+        label = f"MaterialX material '{name}' ({os.path.basename(self.path)})"
+        try:
+            return self._translate_node(name, label)
+        except Exception as exc:  # noqa: BLE001 - bad input never crashes
+            mp = MaterialPrim(path="", source=SOURCE, uses_defaults=True)
+            mp.warnings.append(f"{label}: could not be read ({exc}); using defaults")
+            return mp
+
+    def _translate_node(self, name: str, label: str) -> MaterialPrim:
         import MaterialX as mx
 
-        label = f"MaterialX material '{name}' ({os.path.basename(self.path)})"
         mp = MaterialPrim(path="", source=SOURCE)
         node = self.doc.getNode(name) if self.doc is not None else None
         if node is None:
