@@ -1,5 +1,6 @@
-"""``stb inspect SCENE [--time T] [--json]``: prims by type and every light in
-physical units (render frame: Y up, metres; cd; lm), plus all warnings."""
+"""``stb inspect SCENE [--time T] [--json]``: prims by type, every light in
+physical units (render frame: Y up, metres; cd; lm), every material (where it came
+from, which inputs are textured, its notes), plus all warnings."""
 
 from __future__ import annotations
 
@@ -95,6 +96,20 @@ def inspect_stage(stage, time: float | None = None, usd_warnings: list[str] | No
             },
         }
         lights.append(rec)
+    materials = []
+    for path in sorted(ri.delegate.materials):
+        mp = ri.delegate.materials[path].material
+        if mp is None:
+            continue
+        materials.append(
+            {
+                "path": path,
+                "source": mp.source or None,
+                "uses_defaults": bool(mp.uses_defaults),
+                "textured": sorted(mp.textures),
+                "notes": list(mp.notes),
+            }
+        )
     counts = si.counts_by_type()
     total_flux = float(np.sum([lr["flux"] or 0.0 for lr in lights]))
     return {
@@ -103,6 +118,7 @@ def inspect_stage(stage, time: float | None = None, usd_warnings: list[str] | No
         "metersPerUnit": si.mpu,
         "prims": counts,
         "lights": lights,
+        "materials": materials,
         "cameras": si.cameras(),
         "summary": {
             "lights": len(lights),
@@ -155,12 +171,27 @@ def _print_report(rep: dict) -> None:
             "-" if lr["range"] is None else f"{lr['range']:.3g}",
         )
     con.print(t)
+    if rep["materials"]:
+        mt = Table(show_lines=False)
+        for col in ("material", "source", "textured inputs"):
+            mt.add_column(col)
+        for mr in rep["materials"]:
+            src = mr["source"] or "-"
+            mt.add_row(
+                mr["path"],
+                src + (" (defaults)" if mr["uses_defaults"] else ""),
+                ", ".join(mr["textured"]) or "-",
+            )
+        con.print(mt)
+        notes = dict.fromkeys(n for mr in rep["materials"] for n in mr["notes"])
+        for n in notes:
+            con.print(f"[dim]note:[/dim] {n}", markup=True, highlight=False)
     for w in rep["warnings"]:
         con.print(f"[yellow]warning:[/yellow] {w}", markup=True, highlight=False)
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("inspect", help="list prims and lights in physical units")
+    p = sub.add_parser("inspect", help="list prims, lights in physical units and materials")
     p.add_argument("scene", help="USD file")
     p.add_argument("--time", type=float, default=None, help="time code (default: stage start)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")

@@ -368,6 +368,13 @@ def read_material(prim: Usd.Prim, time: Usd.TimeCode) -> MaterialPrim:
     network through :mod:`.materialx`; ``uses_defaults`` without either."""
     mp = MaterialPrim(path=str(prim.GetPath()))
     shader = _surface_shader(UsdShade.Material(prim))
+    if shader is None or shader.GetShaderId() != "UsdPreviewSurface":
+        # MaterialX networks authored in USD (ND_* shaders, the mtlx render context).
+        from .materialx import read_usd_materialx
+
+        mx_mp = read_usd_materialx(prim, time)
+        if mx_mp is not None:
+            return mx_mp
     if shader is None:
         return _use_defaults(mp, "no UsdPreviewSurface surface")
     sid = _shader_id(shader)
@@ -415,12 +422,25 @@ def read_preview_surface(shader: UsdShade.Shader, time: Usd.TimeCode, mp: Materi
 
 
 def bound_material_path(prim: Usd.Prim) -> str | None:
-    """Path of the material bound for full rendering, or None."""
+    """Path of the material bound for full rendering, or None.
+
+    When the winning binding (``ComputeBoundMaterial``: binding strength and purpose
+    resolved by USD) targets a path with no Material prim -- the materials of a
+    ``.mtlx`` reference, which usd-core cannot compose and the scene index synthesises
+    (:mod:`stb_hydra.scene.materialx`) -- that relationship's material target is
+    returned: renderers look it up among the scene's materials."""
     try:
-        mat, _rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
+        mat, rel = UsdShade.MaterialBindingAPI(prim).ComputeBoundMaterial()
     except Exception:  # noqa: BLE001 - bad input must never crash
         return None
     if not mat:
-        return None
+        if not rel:
+            return None
+        try:
+            # A collection binding targets (collection, material); a direct one (material).
+            targets = [t for t in rel.GetTargets() if t.IsPrimPath()]
+        except Exception:  # noqa: BLE001
+            return None
+        return str(targets[-1]) if targets else None
     p = mat.GetPath()
     return str(p) if p != Sdf.Path.emptyPath else None

@@ -26,6 +26,7 @@ import numpy as np
 from pxr import Sdf, Tf, Usd, UsdGeom, UsdShade
 
 from . import locators as loc
+from . import materialx as mtlx
 from . import prims
 from .cameras import exposure_scale, read_camera
 from .geometry import (
@@ -84,6 +85,8 @@ class _Entry:
     #: Authored property names read during population (consumed by the first
     #: light read; dropped when a notice touches the prim).
     names_hint: frozenset[str] | None = None
+    #: A material read from a MaterialX document: (resolved .mtlx file, material name).
+    mtlx: tuple[str, str] | None = None
 
 
 class _DataSource:
@@ -183,7 +186,10 @@ class MaterialDataSource(_DataSource):
     __slots__ = ()
 
     def material(self) -> prims.MaterialPrim:
-        return read_material(self.entry.prim, self.index.time)
+        e = self.entry
+        if e.mtlx is not None:
+            return self.index.mtlx_material(e)
+        return read_material(e.prim, self.index.time)
 
 
 #: Material inputs a float3 primvar may drive (the others take a float).
@@ -232,6 +238,9 @@ class StageSceneIndex(SceneIndex):
         self._geom_cache: dict[tuple[str, PrimvarRequest], MeshGeometry | None] = {}
         #: Scene path -> MaterialPrim read for primvar requests (see material_record).
         self._material_cache: dict[str, prims.MaterialPrim | None] = {}
+        #: Parsed .mtlx documents (per resolved file) and the prims referencing one.
+        self._mtlx_docs = mtlx.MtlxDocumentCache()
+        self._mtlx_prims: set[str] = set()
         self._pending = _Pending()
         self._update_frame()
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._on_changed, stage)
@@ -441,6 +450,7 @@ class StageSceneIndex(SceneIndex):
             vis_of[root.GetPath().GetParentPath()] = (
                 not img or img.ComputeVisibility(self.time) != UsdGeom.Tokens.invisible
             )
+        mtlx_candidates: list[Usd.Prim] = []
         pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
         it = iter(Usd.PrimRange(root, pred))
         for p in it:
@@ -479,6 +489,8 @@ class StageSceneIndex(SceneIndex):
                 it.PruneChildren()
                 added.extend(self._add_instancer(p, tvx_of[path], tvv_of[path]))
                 continue
+            if p.HasAuthoredReferences() or p.HasAuthoredPayloads():
+                mtlx_candidates.append(p)
             ptype = self._classify(p)
             if ptype is None:
                 continue
@@ -494,7 +506,90 @@ class StageSceneIndex(SceneIndex):
             self._add_entry(_Entry(spath, ptype, p, vis_hint=vis, names_hint=names), tv, added)
             if ptype == prims.MATERIAL:
                 it.PruneChildren()  # shaders are read through the material
+        self._add_mtlx_materials(mtlx_candidates, added)
         return added
+
+    # -- MaterialX documents referenced from the stage --
+    def _add_mtlx_materials(self, candidates: list[Usd.Prim], added: list[AddedPrimEntry]) -> None:
+        """A MATERIAL prim per material of each ``.mtlx`` document referenced by a
+        prim in ``candidates``, at the path usdMtlx would have composed it
+        (:func:`stb_hydra.scene.materialx.material_prim_paths`)."""
+        for p in candidates:
+            refs = mtlx.mtlx_references(p)
+            if not refs:
+                continue
+            self._mtlx_prims.add(str(p.GetPath()))
+            for ref in refs:
+                self._add_mtlx_reference(ref, added)
+
+    def _add_mtlx_reference(self, ref: mtlx.MtlxReference, added: list[AddedPrimEntry]) -> None:
+        key = f"mtlx:{ref.layer}:{ref.asset}"
+        where = f"prim <{ref.prim_path}>: MaterialX {ref.arc} @{ref.asset}@"
+        if not ref.resolved:
+            self.warn_once(key, f"{where} not found; its materials are skipped")
+            return
+        doc = self._mtlx_docs.get(ref.resolved)
+        if doc.error:
+            self.warn_once(
+                key, f"{where} could not be read ({doc.error}); its materials are skipped"
+            )
+            return
+        paths = mtlx.material_prim_paths(ref.prim_path, ref.target, doc.materials)
+        if not paths:
+            if paths is None or ref.target.startswith("/MaterialX/Materials/"):
+                self.warn_once(
+                    f"{key}:{ref.target}",
+                    f"{where}: no material at <{ref.target}> (usdMtlx composes materials at "
+                    "</MaterialX/Materials/NAME>); skipped",
+                )
+            return
+        derived = self._derived[ref.prim_path]
+        for path, name in paths:
+            e = self._entries.get(path)
+            if e is not None:
+                # A Material prim that references one MaterialX material reads it.
+                if path == ref.prim_path and e.prim_type == prims.MATERIAL and e.mtlx is None:
+                    e.mtlx = (ref.resolved, name)
+                continue
+            self._add_entry(
+                _Entry(path, prims.MATERIAL, None, mtlx=(ref.resolved, name)), set(), added
+            )
+            if path not in derived:
+                derived.append(path)
+
+    def mtlx_material(self, e: _Entry) -> prims.MaterialPrim:
+        """The MaterialPrim of a MaterialX-document entry (``e.mtlx``)."""
+        assert e.mtlx is not None
+        file, name = e.mtlx
+        doc = self._mtlx_docs.get(file)
+        if doc.error:
+            mp = prims.MaterialPrim(e.path, uses_defaults=True, source=mtlx.SOURCE)
+            mp.warnings.append(f"material <{e.path}>: {file} could not be read ({doc.error})")
+            return mp
+        return doc.material(name, e.path)
+
+    def _add_prototype_materials(
+        self, exp: InstancerExpansion, ipath: str, added: list[AddedPrimEntry]
+    ) -> None:
+        """Materials inside a PointInstancer's prototypes (the traversal stops at the
+        instancer): UsdShade Materials and MaterialX references. Prototypes outside
+        the instancer are traversed on their own."""
+        candidates: list[Usd.Prim] = []
+        pred = Usd.TraverseInstanceProxies(Usd.PrimDefaultPredicate)
+        for r in exp.prototype_roots:
+            root = self.stage.GetPrimAtPath(r)
+            if not root or not r.startswith(ipath + "/"):
+                continue
+            it = iter(Usd.PrimRange(root, pred))
+            for p in it:
+                if p.HasAuthoredReferences() or p.HasAuthoredPayloads():
+                    candidates.append(p)
+                if p.GetTypeName() == "Material":
+                    it.PruneChildren()
+                    path = str(p.GetPath())
+                    if path not in self._entries:
+                        self._add_entry(_Entry(path, prims.MATERIAL, p), set(), added)
+        self._add_mtlx_materials(candidates, added)
 
     def _add_entry(self, e: _Entry, tv: set[str], added: list[AddedPrimEntry]) -> None:
         e.ds = _ds_class(e.prim_type)(self, e)
@@ -547,6 +642,7 @@ class StageSceneIndex(SceneIndex):
             if inst_tv:
                 tv.add(loc.INSTANCER)
             self._add_entry(e, tv, added)
+        self._add_prototype_materials(exp, ipath, added)
         for part in exp.lights:
             ptype = light_type_of(part.prim) or prims.SPHERE_LIGHT
             base = self._prim_time_varying(part.prim, ptype, False, tvv)
@@ -703,6 +799,7 @@ class StageSceneIndex(SceneIndex):
         self._instancers.clear()
         self._proto_users.clear()
         self._geom_cache.clear()
+        self._mtlx_prims.clear()
         self._sorted_valid = False
         self._send_removed(removed)
         self._update_frame()
@@ -738,6 +835,9 @@ class StageSceneIndex(SceneIndex):
         self._remove_paths(removed)
         self._geom_cache.clear()
         self.xform_cache.Clear()
+        self._mtlx_prims = {
+            p for p in self._mtlx_prims if p != root and not p.startswith(root + "/")
+        }
         self._send_removed(removed)
         prim = self.stage.GetPrimAtPath(root)
         added: list[AddedPrimEntry] = []
@@ -750,6 +850,14 @@ class StageSceneIndex(SceneIndex):
             else:
                 tvx, tvv = self._ancestor_state(prim)
                 added = self._populate(prim, tvx, tvv)
+        # Materials a MaterialX reference above root synthesised under it.
+        anc = Sdf.Path(root).GetParentPath() if root != "/" else Sdf.Path.emptyPath
+        while anc and anc != Sdf.Path.absoluteRootPath:
+            if str(anc) in self._mtlx_prims:
+                ap = self.stage.GetPrimAtPath(anc)
+                if ap:
+                    self._add_mtlx_materials([ap], added)
+            anc = anc.GetParentPath()
         self._send_added(added)
         return set(removed) | {a.path for a in added}
 

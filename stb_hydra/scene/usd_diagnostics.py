@@ -44,6 +44,13 @@ _FORMAT_ARGS = re.compile(r":SDF_FORMAT_ARGS:[^@]*@")
 _ASSET = re.compile(r"@([^@]+)@")
 _PRIM = re.compile(r"<[^<>]*>")
 _NUMBER = re.compile(r"\b0x[0-9a-fA-F]+\b|\b\d+\b")
+#: usd-core cannot open ``.mtlx`` layers (no usdMtlx plugin); the scene index reads
+#: those references itself (:mod:`stb_hydra.scene.materialx`) and warns in its own
+#: words when a document is missing or unreadable, so USD's composition error is
+#: dropped (see :func:`handled_elsewhere`).
+_MTLX_ARC = re.compile(
+    r"Could not open asset @[^@]*\.mtlx@ for (?:reference|payload) introduced by"
+)
 
 
 def strip_namespaces(text: str) -> str:
@@ -104,6 +111,12 @@ def cause_key(text: str) -> str:
     return _NUMBER.sub("#", k)
 
 
+def handled_elsewhere(text: str) -> bool:
+    """A (cleaned) USD diagnostic that stb_hydra reports in its own words: the
+    failed composition of a ``.mtlx`` reference or payload."""
+    return _MTLX_ARC.search(text) is not None
+
+
 @dataclass(frozen=True)
 class Diagnostic:
     """One trapped USD diagnostic: ``kind`` 'warning' | 'error'; ``text`` cleaned
@@ -123,7 +136,8 @@ class UsdDiagnostics:
                 print("warning:", line)
 
     ``drain()`` returns what was trapped since the last drain (status messages are
-    dropped: informational). Anything not drained is dropped when the block ends
+    dropped: informational; so are the failed ``.mtlx`` arcs the scene index reads
+    itself, :func:`handled_elsewhere`). Anything not drained is dropped when the block ends
     (``keep=True``: re-posted to USD's default output instead)."""
 
     def __init__(self, base_dir: str | None = None, keep: bool = False) -> None:
@@ -146,13 +160,10 @@ class UsdDiagnostics:
         out: list[Diagnostic] = []
         for kind, items in (("error", ctx.GetErrors()), ("warning", ctx.GetWarnings())):
             for d in items:
-                out.append(
-                    Diagnostic(
-                        kind,
-                        clean_text(str(d.commentary), self.base_dir),
-                        strip_namespaces(str(d.sourceFunction)),
-                    )
-                )
+                text = clean_text(str(d.commentary), self.base_dir)
+                if handled_elsewhere(text):
+                    continue
+                out.append(Diagnostic(kind, text, strip_namespaces(str(d.sourceFunction))))
         ctx.Clear()
         return out
 
