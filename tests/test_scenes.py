@@ -655,10 +655,25 @@ def test_gen_chess_lights(tmp_path: Path, n: int):
     for b in pieces:
         inside |= np.all((pos > b[:3]) & (pos < b[3:]), axis=1)
     assert not inside.any()
-    # fallback looks are what ComputeBoundMaterial finds
-    mesh = next(p for p in meshes if "/White/" in str(p.GetPath()))
-    mat, _ = UsdShade.MaterialBindingAPI(mesh).ComputeBoundMaterial()
-    assert mat and mat.GetPath() == Sdf.Path("/World/Looks/Ivory")
+    # The asset's own MaterialX looks: the scene index binds a textured material.
+    from stb_hydra.scene.stage_scene_index import StageSceneIndex
+
+    index = StageSceneIndex(stage)
+    mesh = next(p for p in meshes if "/White/King/" in str(p.GetPath()))
+    mpath = index.get_prim(str(mesh.GetPath())).data_source.material()
+    mat = index.material_record(mpath)
+    assert mat is not None and mat.source == "MaterialX" and "diffuseColor" in mat.textures
+    index.close()
+    # --fallback-materials: untextured looks that ComputeBoundMaterial finds.
+    fb = tmp_path / "chess" / f"chess_{n}_fallback.usda"
+    assert (
+        gen_chess_lights.main([str(fb), "--lights", str(n), "--seed", "2", "--fallback-materials"])
+        == 0
+    )
+    fstage = Usd.Stage.Open(str(fb))
+    fmesh = fstage.GetPrimAtPath(mesh.GetPath())
+    fmat, _ = UsdShade.MaterialBindingAPI(fmesh).ComputeBoundMaterial()
+    assert fmat and fmat.GetPath() == Sdf.Path("/World/Looks/Ivory")
     if n == 50:
         text1 = out.read_text()
         assert gen_chess_lights.main([str(out), "--lights", str(n), "--seed", "2"]) == 0

@@ -11,10 +11,11 @@ extentsHint, read without loading payloads). The lights share ``--total-lumens``
 (default 300 lm, a desk lamp's worth, ~300 lx on the board) with log-normal
 spread, so the board's exposure barely changes with N.
 
-With usd-core the asset's MaterialX looks do not load (``.mtlx`` is not readable),
-so by default the stage also binds plain UsdPreviewSurface fallbacks (ivory, ebony,
-walnut) on the White / Black / Chessboard groups with ``strongerThanDescendants``;
-``--no-fallback-materials`` leaves the asset's own bindings alone.
+The asset renders with its own MaterialX looks (``scene.materialx``: marble, wood,
+gold, normal maps). ``--fallback-materials`` binds plain UsdPreviewSurface looks
+(ivory, ebony, walnut) over them on the White / Black / Chessboard groups with
+``strongerThanDescendants`` -- untextured, as every scene of this generator was before
+MaterialX looks loaded (the figures in docs/STB_NOTES.md before issue 30 used them).
 
     python -m stb_hydra.scenegen.chess out/chess_256.usda --lights 256
 
@@ -99,7 +100,7 @@ def chess_scene_usda(
     total_lumens: float = 300.0,
     radius: tuple[float, float] = (0.002, 0.02),
     height: tuple[float, float] = (0.02, 0.2),
-    fallback_materials: bool = True,
+    fallback_materials: bool = False,
     anchor_dir: Path | str | None = None,
 ) -> str:
     chess = chess_set(chess)  # FileNotFoundError when missing
@@ -166,7 +167,8 @@ def chess_scene_usda(
             "ChessSet",
             meta=[f"prepend references = {chess_ref}"],
             doc="The OpenChessSet, unchanged (board top at "
-            f"y = {board_top:.4f} m), plus fallback looks for usd-core.",
+            f"y = {board_top:.4f} m)"
+            + (", plus untextured fallback looks." if fallback_materials else "."),
         ):
             if fallback_materials:
                 for group, (mat, _, _) in FALLBACK_LOOKS.items():
@@ -281,9 +283,9 @@ def main(argv: list[str] | None = None) -> int:
         help="height range above the board top (m)",
     )
     ap.add_argument(
-        "--no-fallback-materials",
+        "--fallback-materials",
         action="store_true",
-        help="do not bind the UsdPreviewSurface fallbacks over the MaterialX looks",
+        help="bind untextured UsdPreviewSurface looks over the asset's MaterialX looks",
     )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
@@ -295,7 +297,7 @@ def main(argv: list[str] | None = None) -> int:
             args.total_lumens,
             tuple(args.radius),
             tuple(args.height),
-            not args.no_fallback_materials,
+            args.fallback_materials,
             anchor_dir=args.out.resolve().parent,
         )
     except (FileNotFoundError, RuntimeError) as e:
