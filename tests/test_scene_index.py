@@ -327,9 +327,10 @@ def Xform "W"
     ("surface", "why"),
     [
         ("", "no UsdPreviewSurface surface"),
+        # (ND_standard_surface_surfaceshader is read as MaterialX: tests/test_materialx.py.)
         (
-            'uniform token info:id = "ND_standard_surface_surfaceshader"',
-            "surface shader 'ND_standard_surface_surfaceshader' is not UsdPreviewSurface",
+            'uniform token info:id = "PxrSurface"',
+            "surface shader 'PxrSurface' is not UsdPreviewSurface",
         ),
     ],
 )
