@@ -613,3 +613,74 @@ def test_bake_honours_cutout_shadows(tmp_path, gl_ctx):
     rel = np.abs(col - exp_lit) / exp_lit
     assert np.median(rel[m & ~kept]) < 0.03, np.median(rel[m & ~kept])
     assert np.median(col[m & kept] / exp_lit[m & kept]) < 0.05
+
+
+def _write_mip_chain(path, levels):
+    """A ``.tx`` (OIIO's maketx) whose stored mip levels have the given constant
+    colours (level 0 16x16, each next level half the size; ``maketx:mipimages``)."""
+    import OpenImageIO as oiio
+
+    names, size = [], 16
+    for i, c in enumerate(levels):
+        b = oiio.ImageBuf(oiio.ImageSpec(size, size, 3, "float"))
+        oiio.ImageBufAlgo.fill(b, c)
+        names.append(str(path.parent / f"level{i}.exr"))
+        assert b.write(names[-1]), b.geterror()
+        size //= 2
+    cfg = oiio.ImageSpec()
+    cfg.attribute("maketx:mipimages", ";".join(names[1:]))
+    cfg.attribute("maketx:fileformatname", "exr")
+    src = oiio.ImageBuf(names[0])
+    assert oiio.ImageBufAlgo.make_texture(oiio.MakeTxTexture, src, str(path), cfg), oiio.geterror()
+
+
+def test_stored_mip_levels_are_used(tmp_path, gl_ctx):
+    """A file's own mip chain (e.g. a .tx) is uploaded as stored, not rebuilt: at 4
+    texels per pixel the lookup reads level 2 (blue), which level 0 (red) would never
+    produce."""
+    levels = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1)]
+    _write_mip_chain(tmp_path / "mips.tx", levels)
+    body = (
+        ortho_camera()
+        + quad("Q", "M", st_scale=8.0)
+        + preview_material(
+            "M",
+            textures={"color3f inputs:diffuseColor": "T.outputs:rgb"},
+            nodes=uv_texture(
+                "T",
+                "./mips.tx",
+                color_space="raw",
+                extra='        token inputs:wrapS = "repeat"\n'
+                '        token inputs:wrapT = "repeat"\n',
+            )
+            + primvar_reader(),
+        )
+    )
+    out, warnings = render_aovs(write_stage(tmp_path, body), w=32, h=32)
+    rgb = np.median(out["albedo"][4:-4, 4:-4, :3].reshape(-1, 3), axis=0)
+    assert rgb[2] > 0.8 and rgb[0] < 0.2, rgb
+    assert not warnings, warnings
+
+
+def test_texture_budget_downscales_with_one_warning(tmp_path, gl_ctx):
+    """Over the texture budget the largest texture is halved (its texels still read
+    right: a constant-cell image) and one warning names it."""
+    img = cells(4, 64)  # 256 x 256
+    path = textured_quad(tmp_path, img, "raw")
+    stage = Usd.Stage.Open(str(path))
+    # 0.1 MiB < 256 x 256 x 4 bytes x 4/3 (the mips).
+    settings = RenderSettings(width=W, height=H, lighting="sun", texture_budget_mib=0.1)
+    eng = Engine(stage, settings)
+    try:
+        eng.request_aovs({"color", "albedo"})
+        eng.render(None)
+        (t,) = eng.delegate.textures.textures.values()
+        assert t.shrink >= 2 and t.nbytes <= 0.1 * 2**20
+        warn = [w for w in eng.delegate.warnings if "budget" in w]
+        assert len(warn) == 1 and "tex.png" in warn[0], eng.delegate.warnings
+        s, tt = expected_st(W, H)
+        exp = lookup_cells(img.astype(np.float64) / 255.0, s, tt)
+        got = eng.aovs["albedo"][..., :3].astype(np.float64)
+        assert np.median(np.abs(got - exp)[interior(s, tt, 4)]) <= 0.01
+    finally:
+        eng.release()

@@ -115,6 +115,14 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--no-shadows", action="store_true", help="local lights unshadowed")
     p.add_argument(
+        "--texture-budget",
+        type=float,
+        metavar="MIB",
+        help="GPU memory for material textures, mips included (default "
+        f"{limits.TEXTURE_BUDGET_BYTES // 2**20} MiB); past it the largest are halved, "
+        "with one warning naming them",
+    )
+    p.add_argument(
         "--shadow-budget",
         type=int,
         help="shadow-atlas texels rendered per frame, to see a real-time frame "
@@ -323,6 +331,9 @@ def _render_settings(args: argparse.Namespace):
         raise CliError(
             f"--shadow-budget must be a positive number of texels, got {args.shadow_budget}"
         )
+    tb = args.texture_budget
+    if tb is not None and not (math.isfinite(tb) and tb > 0):
+        raise CliError(f"--texture-budget must be a positive number of MiB, got {tb:g}")
     ms = args.shadow_budget_ms
     if ms is not None and not 0 < ms <= limits.SHADOW_UPDATE_BUDGET_MS_MAX:
         raise CliError(
@@ -348,6 +359,7 @@ def _render_settings(args: argparse.Namespace):
             shadow_capture_mode=args.shadow_capture,
             shadow_atlas_size=args.atlas_size,
             shadow_filter=args.shadow_filter,
+            texture_budget_mib=args.texture_budget,
             method_options=options,
         )
     except ValueError as exc:  # a setting out of range (e.g. --taa-filter)
@@ -384,6 +396,7 @@ def _stats_header(args: argparse.Namespace, eng, settings, pipeline) -> dict:
             # null: offline, every shadow map captured before each frame
             "shadow_budget": settings.shadow_budget,
             "shadow_budget_ms": settings.shadow_budget_ms,
+            "texture_budget_mib": settings.texture_budget_mib,
         },
         "frames": [],
     }

@@ -78,6 +78,9 @@ class Engine:
         self.ctx = ctx or get_context()
         self.scene_index = StageSceneIndex(stage, time)
         self.delegate = GLRenderDelegate(self.ctx)
+        if self.settings.texture_budget_mib is not None:
+            mib = self.settings.texture_budget_mib
+            self.delegate.textures.budget_bytes = int(mib * 2**20)
         self.render_index = RenderIndex(self.scene_index, self.delegate)
         self.color = color or ColorPipeline()
         self.buffers = RenderBuffers(self.ctx)

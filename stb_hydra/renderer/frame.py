@@ -69,6 +69,9 @@ class RenderSettings:
     taa_filter: int = 0
     #: Extra uniform ambient radiance (nits) added to the dome, e.g. for thumbnails.
     ambient: float = 0.0
+    #: GPU memory for material textures (MiB, mips included); None =
+    #: ``limits.TEXTURE_BUDGET_BYTES``. Past it the largest textures are halved.
+    texture_budget_mib: float | None = None
     #: ``ctx.finish()`` after every task so per-task wall times are real (benchmarks).
     profile: bool = False
     #: Lighting-method specific options (``renderer.lighting.<method>.options``).
@@ -101,6 +104,11 @@ class RenderSettings:
                 f"shadow_budget_ms must be a number of milliseconds in "
                 f"(0, {limits.SHADOW_UPDATE_BUDGET_MS_MAX:g}], or None; got {ms!r}"
             )
+        tb = self.texture_budget_mib
+        if tb is not None and (
+            isinstance(tb, bool) or not isinstance(tb, (int, float)) or not 0 < tb < 1e9
+        ):
+            raise ValueError(f"texture_budget_mib must be a positive number of MiB; got {tb!r}")
         cc = self.shadow_cost_coeffs
         if cc is not None:
             try:

@@ -204,8 +204,9 @@ _GL_FORMATS = {1: "GL_RED", 2: "GL_RG", 3: "GL_RGB", 4: "GL_RGBA"}
 
 
 def _write_level(tex: moderngl.TextureArray, data: np.ndarray, level: int) -> None:
-    """Write one stored mip level of layer 0 (moderngl's TextureArray.write has no
-    level): (h, w, c) uint8 / uint16 / float16, rows already flipped."""
+    """Define one stored mip level of layer 0 (moderngl's TextureArray.write has no
+    level, and it allocated level 0 only): (h, w, c) uint8 / uint16 / float16, rows
+    already flipped, the internal format of level 0."""
     from OpenGL import GL
 
     h, w, c = data.shape
@@ -214,21 +215,12 @@ def _write_level(tex: moderngl.TextureArray, data: np.ndarray, level: int) -> No
         np.dtype(np.uint16): GL.GL_UNSIGNED_SHORT,
         np.dtype(np.float16): GL.GL_HALF_FLOAT,
     }[data.dtype]
-    GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, tex.glo)
+    target = GL.GL_TEXTURE_2D_ARRAY
+    GL.glBindTexture(target, tex.glo)
     GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
-    GL.glTexSubImage3D(
-        GL.GL_TEXTURE_2D_ARRAY,
-        level,
-        0,
-        0,
-        0,
-        w,
-        h,
-        1,
-        getattr(GL, _GL_FORMATS[c]),
-        gl_type,
-        np.ascontiguousarray(data),
-    )
+    fmt = int(GL.glGetTexLevelParameteriv(target, 0, GL.GL_TEXTURE_INTERNAL_FORMAT))
+    pixels = np.ascontiguousarray(data)
+    GL.glTexImage3D(target, level, fmt, w, h, 1, 0, getattr(GL, _GL_FORMATS[c]), gl_type, pixels)
 
 
 def _halve(a: np.ndarray, srgb: bool) -> np.ndarray:
@@ -357,7 +349,7 @@ class TextureCache:
             more = f" (+{len(shrunk) - 6} more)" if len(shrunk) > 6 else ""
             self._warn(
                 "budget:" + ",".join(k.file for k in shrunk),
-                f"textures exceed the {self.budget_bytes / 2**20:.0f} MiB texture budget "
+                f"textures exceed the {self.budget_bytes / 2**20:.4g} MiB texture budget "
                 f"(or {limits.TEXTURE_MAX_SIZE} px); downscaled: {names}{more}",
             )
         for k in sizes:
