@@ -23,6 +23,12 @@ layout(location = 2) out vec4 o_base_rough;
 layout(location = 3) out vec4 o_f0_metal;
 layout(location = 4) out vec2 o_motion;
 layout(location = 5) out vec4 o_emission;
+#ifdef HAS_LINKS
+// Light linking (scene/links.py): the batch's light-link group -> g_link (r8ui), at the
+// attachment after the others (LINK_TARGET_LOCATION, renderer/tasks/gbuffer.py).
+uniform uint u_link_group;
+layout(location = LINK_TARGET_LOCATION) out uint o_link;
+#endif
 
 void main() {
     vec3 n = normalize(v_normal);
@@ -41,4 +47,7 @@ void main() {
     vec2 prev = v_prev_clip.xy / v_prev_clip.w;
     o_motion = (cur - prev) * 0.5 * u_resolution.xy;
     o_emission = vec4(min(max(u_emissive, 0.0), vec3(LIM_HALF_MAX)), 1.0);
+#ifdef HAS_LINKS
+    o_link = u_link_group;
+#endif
 }
