@@ -4,6 +4,7 @@
 // (baked lights have no shadow maps), added to g_emission.
 #include "common/gbuffer.glsl"
 #include "common/lights.glsl"
+#include "common/links.glsl"
 
 uniform sampler2D u_mask;   // r8: 1 where a lightmap was applied
 uniform int u_baked_count;  // lights in the bound light buffer (the baked ones)
@@ -16,7 +17,13 @@ void main() {
     Surface s;
     if (!read_surface(px, s)) discard;
     vec3 c = vec3(0.0);
+#ifdef HAS_LINKS
+    uint group = link_group(px);
+#endif
     for (int i = 0; i < u_baked_count; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(uint(i), group)) continue;
+#endif
         Light L = lights[i];
         vec3 Ldir; float dist;
         vec3 E = light_illuminance(L, s.P, Ldir, dist);

@@ -16,9 +16,13 @@
 #include "common/brdf.glsl"
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
+#include "common/links.glsl"
 
 uniform sampler2D u_pos;     // rgba32f world position, w = coverage
 uniform sampler2D u_normal;  // rgba32f world normal
+#ifdef HAS_LINKS
+uniform uint u_link_group;   // the baked mesh's light-link group: unlinked lights skipped
+#endif
 
 layout(location = 0) out vec4 o_diffuse;
 layout(location = 1) out vec4 o_spec_top;
@@ -42,6 +46,9 @@ void main() {
     float top_w = 0.0, top_wt = 0.0, sec_w = 0.0, sec_wt = 0.0;
     uint n = u_counts.x;
     for (uint i = 0u; i < n; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, u_link_group)) continue;
+#endif
         Light L = lights[i];
         vec3 Ldir; float dist;
         vec3 E = light_illuminance(L, P, Ldir, dist);

@@ -57,6 +57,13 @@ vec3 perturb_normal(vec3 N, vec3 ts) {
 }
 #endif
 
+#ifdef HAS_LINKS
+// Light linking (scene/links.py): the batch's light-link group -> g_link (r8ui), at the
+// attachment after the others (LINK_TARGET_LOCATION, renderer/tasks/gbuffer.py).
+uniform uint u_link_group;
+layout(location = LINK_TARGET_LOCATION) out uint o_link;
+#endif
+
 void main() {
     vec3 n = normalize(v_normal);
     if (!gl_FrontFacing) n = -n;  // single-sided meshes are not culled: light the visible side
@@ -93,4 +100,7 @@ void main() {
     vec2 prev = v_prev_clip.xy / v_prev_clip.w;
     o_motion = (cur - prev) * 0.5 * u_resolution.xy;
     o_emission = vec4(min(max(emissive, 0.0), vec3(LIM_HALF_MAX)), occlusion);
+#ifdef HAS_LINKS
+    o_link = u_link_group;
+#endif
 }

@@ -17,10 +17,18 @@ void main() {
         write_background(px);
         return;
     }
+#ifdef HAS_LINKS
+    uint group = link_group(px);  // lights test their mask bit for it (common/links.glsl)
+    vec3 c = sun_and_ambient(s, group);
+#else
     vec3 c = sun_and_ambient(s);
+#endif
 #ifdef LOCAL_LIGHTS
     uint n = u_counts.x;
     for (uint i = 0u; i < n; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
         c += light_radiance(lights[i], s);
     }
 #endif

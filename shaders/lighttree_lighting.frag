@@ -39,7 +39,12 @@ void main() {
         write_background(px);
         return;
     }
+#ifdef HAS_LINKS
+    uint group = link_group(px);  // lights test their mask bit for it (common/links.glsl)
+    vec3 c = sun_and_ambient(s, group);
+#else
     vec3 c = sun_and_ambient(s);
+#endif
     float depth = texelFetch(g_depth, px, 0).r;
     ivec2 tile = px / u_tile_px;
     int cell = (depth_slice(depth) * u_grid.y + tile.y) * u_grid.x + tile.x;
@@ -52,6 +57,9 @@ void main() {
                 uint count = (nd.bits >> 1) & 0xFFFFu;
                 for (uint k = 0u; k < count; ++k) {
                     uint i = tree_lights[nd.first_light + k];
+#ifdef HAS_LINKS
+                    if (!light_linked(i, group)) continue;
+#endif
                     if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
                     c += light_radiance(lights[i], s);
                 }

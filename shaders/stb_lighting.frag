@@ -46,7 +46,12 @@ void main() {
         write_background(px);
         return;
     }
+#ifdef HAS_LINKS
+    uint group = link_group(px);  // lights test their mask bit for it (common/links.glsl)
+    vec3 c = sun_and_ambient(s, group);
+#else
     vec3 c = sun_and_ambient(s);
+#endif
     ivec2 st; int slot;
     quad_owner(px, st, slot);
     uvec4 smp = texelFetch(u_smalltile, st, 0);
@@ -86,6 +91,9 @@ void main() {
         uint lj = sample_index(smp[j]);
         rp[j] = 0.0;
         if (lj == LIM_EMPTY_LIGHT_INDEX || !(sample_weight(smp[j]) > 0.0)) continue;
+#ifdef HAS_LINKS
+        if (!light_linked(lj, group)) continue;  // no contribution here: never picked
+#endif
         rp[j] = ris_target(lights[lj], s) * pix_terms[j];
         rp_sum += rp[j];
     }
@@ -135,6 +143,9 @@ void main() {
         float W = sample_weight(smp[j]);
         bool own = (split & (1u << uint(j))) != 0u;  // term evaluated here, per pixel
         if (li == LIM_EMPTY_LIGHT_INDEX || W <= 0.0 || (!own && terms[j] <= 0.0)) continue;
+#ifdef HAS_LINKS
+        if (!light_linked(li, group)) continue;  // the light does not light this pixel's prim
+#endif
         Light L = lights[li];
         vec3 Ldir, d, sp;
         if (!light_reflect(L, s, Ldir, d, sp)) continue;  // area lights: common/area.glsl

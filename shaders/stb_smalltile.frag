@@ -4,12 +4,24 @@
 // illuminance x Lambert + Blinn-Phong on the averaged material x (V cos+ + eps)),
 // and run SRS of STB_N streams over the big tile's K samples. Weight of the
 // stored sample: W' = sum(p_hat * W_bt) / p_hat(selected).
+//
+// Light linking (HAS_LINKS): a candidate whose light lights none of the link groups of
+// this tile's pixels contributes nothing to any of them (the lighting pass multiplies
+// every contribution by the light's bit for the pixel's group), so it is dropped like
+// an empty slot: no target, no share of the defensive floor, never selected. Dropping
+// it is unbiased: a stream's estimate is sum over its kept candidates of f(l) W_bt(l),
+// and the dropped ones have f = 0 at every pixel that uses the tile's samples (the
+// tile's own pixels). A kept light gets target 0 at sampled points whose group it does
+// not light (f = 0 there too); it stays selectable through the floor wherever some
+// pixel of the tile is in a group it lights, so the target is positive wherever f can
+// be -- tests/test_links.py compares STB against the scene without the light.
 #include "common/gbuffer.glsl"
 #include "common/rng.glsl"
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
 #include "common/tiles.glsl"
 #include "common/stb_target.glsl"
+#include "common/links.glsl"
 
 uniform usampler2D u_bigtile;    // r32ui reservoirs, u_block texels per big tile
 uniform ivec2 u_block;
@@ -22,7 +34,11 @@ uniform float u_pdf_floor;       // defensive mixture: p_hat += floor x mean p_h
 
 layout(location = 0) out uvec4 o_samples;
 
+#ifdef HAS_LINKS
+struct PdfPoint { vec3 P; vec3 N; vec3 V; uint group; };
+#else
 struct PdfPoint { vec3 P; vec3 N; vec3 V; };
+#endif
 
 void main() {
     ivec2 st = ivec2(gl_FragCoord.xy);
@@ -45,6 +61,9 @@ void main() {
         Surface s;
         if (!read_surface(px, s)) continue;
         pts[npts].P = s.P; pts[npts].N = s.N; pts[npts].V = s.V;
+#ifdef HAS_LINKS
+        pts[npts].group = link_group(px);
+#endif
         kd += luminance(s.diffuse); ks += luminance(s.f0); rough += s.roughness;
         npts++;
     }
@@ -56,6 +75,9 @@ void main() {
             Surface s;
             if (!read_surface(px, s)) continue;
             pts[0].P = s.P; pts[0].N = s.N; pts[0].V = s.V;
+#ifdef HAS_LINKS
+            pts[0].group = link_group(px);
+#endif
             kd = luminance(s.diffuse); ks = luminance(s.f0); rough = s.roughness;
             npts = 1;
         }
@@ -73,6 +95,20 @@ void main() {
     }
     ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
 
+#ifdef HAS_LINKS
+    // The link groups of this tile's pixels (every pixel that shades with its samples).
+    uint tile_groups = 0u;
+    for (int q = 0; q < nq; ++q) {
+        ivec2 qp = quad_pixel(st, q);
+        for (int k = 0; k < 4; ++k) {
+            ivec2 px = qp + ivec2(k & 1, k >> 1);
+            if (any(lessThan(px, ivec2(0))) || any(greaterThanEqual(px, ivec2(u_resolution.xy)))) continue;
+            if (texelFetch(g_depth, px, 0).r <= 0.0) continue;  // background: not lit
+            tile_groups |= 1u << link_group(px);
+        }
+    }
+#endif
+
     // -- SRS over the big tile's K samples into STB_N streams --
     const int K = STB_K;  // compile-time (= u_block.x * u_block.y): loops unroll, arrays fit
     // Targets of all K candidates first, so the defensive mixture can use their mean.
@@ -86,6 +122,10 @@ void main() {
         uint smp = texelFetch(u_bigtile, tx, 0).r;
         uint li = sample_index(smp);
         float wbt = sample_weight(smp);
+#ifdef HAS_LINKS
+        // Lights none of the tile's pixels: dropped like an empty slot (see the top).
+        if (li != LIM_EMPTY_LIGHT_INDEX && (link_mask[li] & tile_groups) == 0u) wbt = 0.0;
+#endif
         li_all[slot] = li;
         wbt_all[slot] = wbt;
         ph_all[slot] = 0.0;
@@ -93,6 +133,9 @@ void main() {
         Light L = lights[li];
         float ph = 0.0;
         for (int k = 0; k < npts; ++k) {
+#ifdef HAS_LINKS
+            if (!light_linked(li, pts[k].group)) continue;  // f = 0 at this point
+#endif
             vec2 t = stb_point_target(L, pts[k].P, pts[k].N, pts[k].V, kd, ks, spec_n, spec_norm, true);
             if (t.x <= 0.0 && t.y <= 0.0) continue;  // out of range: no shadow lookup
             float V = luminance(local_shadow_hard(L, pts[k].P, pts[k].N));

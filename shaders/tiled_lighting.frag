@@ -33,7 +33,12 @@ void main() {
         write_background(px);
         return;
     }
+#ifdef HAS_LINKS
+    uint group = link_group(px);  // lights test their mask bit for it (common/links.glsl)
+    vec3 c = sun_and_ambient(s, group);
+#else
     vec3 c = sun_and_ambient(s);
+#endif
     ivec2 tile = px / u_tile_px;
     int cell = tile.y * u_grid.x + tile.x;
 #ifdef CLUSTERED
@@ -42,6 +47,9 @@ void main() {
     uvec2 h = cell_header[cell];
     for (uint k = 0u; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance(lights[i], s);
     }

@@ -526,3 +526,23 @@ TEXTURE_ANISOTROPY = 16.0
 MATERIAL_TEXTURE_SLOTS = 8
 #: Bytes per file read for a texture (a corrupt header claiming more is refused).
 TEXTURE_MAX_FILE_BYTES = 1024 * 1024 * 1024
+# --- Light and shadow linking (scene/links.py, issue 30) --------------------------------
+
+#: Most light-link groups (prims sharing one light-link membership signature). A pixel's
+#: group is one integer of the G-buffer's ``g_link`` target and each light's mask over the
+#: groups is one 32-bit uint of the link SSBO, so a light's bit is one shift and AND in
+#: every shader. Past it the closest groups are merged (their masks OR-ed: prims may be
+#: over-lit by a light outside its collection, never under-lit), with one warning naming
+#: the lights affected.
+MAX_LIGHT_LINK_GROUPS = 32
+
+#: Most shadow-link groups. Draw batches are split by shadow group (each shadow capture
+#: draws the batches its light's shadow mask keeps, one bit test per batch), so the
+#: batch count grows with them; 32 keeps the mask one uint like the light mask. Past it
+#: the closest groups are merged and a merged group casts a light's shadow only if every
+#: member did (fewer shadows: over-lit, never under-lit), with one warning.
+MAX_SHADOW_LINK_GROUPS = 32
+
+#: Distinct membership signatures past which the closest-pair merge (quadratic in the
+#: signatures) gives way to keeping the largest groups and folding the rest into one.
+LINK_MERGE_MAX_SIGNATURES = 2048

@@ -617,3 +617,27 @@ def test_free_camera_keeps_the_stage_cameras_exposure(tmp_path, gl_ctx):
         assert np.abs(b - a).mean() < 1.0
     finally:
         s.release()
+
+
+@pytest.mark.gl
+def test_light_list_shows_links(scene, gl_ctx):
+    """The light list's ``links`` line follows a light-link edit made on the stage (two
+    geometry prims: the ground and the box; the edit reaches the engine by change
+    tracking)."""
+    from pxr import Sdf, UsdLux
+
+    s = _session(scene, gl_ctx, max_samples=1)
+    try:
+        _converge(s)
+        rec = {r["path"]: r for r in s.lights()}
+        assert rec["/Lights/Left"]["links"] == "lights all, shadowed by all"
+        assert not rec["/Lights/Left"]["linked"]
+        col = UsdLux.LightAPI(s.stage.GetPrimAtPath("/Lights/Left")).GetLightLinkCollectionAPI()
+        col.CreateIncludeRootAttr(False)
+        col.CreateIncludesRel().SetTargets([Sdf.Path("/Ground")])
+        _converge(s)
+        rec = {r["path"]: r for r in s.lights()}
+        assert rec["/Lights/Left"]["links"] == "lights 1 of 2 prims, shadowed by all"
+        assert rec["/Lights/Left"]["linked"] and not rec["/Lights/Right"]["linked"]
+    finally:
+        s.release()

@@ -205,6 +205,7 @@ def test_validators_registered_under_keyword_stb():
             "StageUnits",
             "AssetPaths",
             "StaticBake",
+            "LightLinks",
         )
     )
     md = reg.GetValidatorMetadata(f"{PLUGIN_NAME}:LightValues")
@@ -250,7 +251,7 @@ def test_plugin_loads_in_a_fresh_usd_process(library, repo):
         timeout=120,
     )
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "8 ['exposure_invalid'] True"
+    assert out.stdout.strip() == "9 ['exposure_invalid'] True"
 
 
 # --- CLI ------------------------------------------------------------------------------

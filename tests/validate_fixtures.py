@@ -216,6 +216,39 @@ def build_library(lib: Path, ies_src: Path) -> dict[str, Expected]:
     )
     exp["scenes/bake_stale.usda"] = Expected({("bake_stale", "/Scene/Lamp")})
 
+    # Light / shadow linking: a misspelt exclude target, and a light-link that holds no
+    # geometry (an Xform with nothing under it), next to a light linked correctly.
+    floor = (
+        '    def Mesh "Floor"\n    {\n'
+        "        int[] faceVertexCounts = [4]\n        int[] faceVertexIndices = [0, 1, 2, 3]\n"
+        "        point3f[] points = [(-1, 0, -1), (-1, 0, 1), (1, 0, 1), (1, 0, -1)]\n    }\n"
+    )
+    _w(
+        lib / "scenes" / "link_missing.usda",
+        _header("Scene")
+        + 'def Xform "Scene"\n{\n'
+        + floor
+        + _light("Lamp", "5000", "        rel collection:shadowLink:excludes = </Scene/Flor>\n")
+        + "}\n",
+    )
+    exp["scenes/link_missing.usda"] = Expected({("link_target_missing", "/Scene/Lamp")})
+    only = "        uniform bool collection:lightLink:includeRoot = 0\n"
+    _w(
+        lib / "scenes" / "link_nothing.usda",
+        _header("Scene")
+        + 'def Xform "Scene"\n{\n'
+        + floor
+        + '    def Xform "Rig"\n    {\n    }\n'
+        + _light(
+            "Lamp", "5000", "        rel collection:lightLink:includes = </Scene/Rig>\n" + only
+        )
+        + _light(
+            "Good", "5000", "        rel collection:lightLink:includes = </Scene/Floor>\n" + only
+        )
+        + "}\n",
+    )
+    exp["scenes/link_nothing.usda"] = Expected({("link_matches_nothing", "/Scene/Lamp")})
+
     # Not USD at all, and a layer the runner must survive.
     _w(lib / "broken" / "garbage.usda", '#usda 1.0\ndef Xform "A" {\n  this is not usda\n')
     exp["broken/garbage.usda"] = Expected({("unreadable", "/")}, opened=False)

@@ -3,6 +3,7 @@
 #define STB_SUN_GLSL
 #include "common/frame.glsl"
 #include "common/brdf.glsl"
+#include "common/links.glsl"
 
 #ifdef HAS_SUN_SHADOW
 uniform sampler2DShadow u_sun_shadow;
@@ -27,11 +28,20 @@ float sun_shadow(vec3 P, vec3 N) {
 float sun_shadow(vec3 P, vec3 N) { return 1.0; }
 #endif
 
-// Sun + dome contribution to the reflected radiance (nits).
+// Sun + dome contribution to the reflected radiance (nits). With HAS_LINKS: of the
+// distant lights and domes that light link group `group` (common/links.glsl).
+#ifdef HAS_LINKS
+vec3 sun_and_ambient(Surface s, uint group) {
+#else
 vec3 sun_and_ambient(Surface s) {
+#endif
     vec3 c = vec3(0.0);
 #ifdef HAS_SUN
+#ifdef HAS_LINKS
+    if (u_sun_dir.w > 0.5 && distant_linked(0, group)) {
+#else
     if (u_sun_dir.w > 0.5) {
+#endif
         vec3 d, sp;
         brdf_eval(s, u_sun_dir.xyz, d, sp);
         float v = u_sun_illum.w > 0.5 ? sun_shadow(s.P, s.N) : 1.0;
@@ -39,6 +49,9 @@ vec3 sun_and_ambient(Surface s) {
         c += (d * u_sun_mult.x + sp * u_sun_mult.y) * u_sun_illum.rgb * vis;
     }
     for (int i = 0; i < int(u_ambient.w); ++i) {
+#ifdef HAS_LINKS
+        if (!distant_linked(i + 1, group)) continue;
+#endif
         vec3 d, sp;
         brdf_eval(s, u_dist_dir[i].xyz, d, sp);
         c += (d * u_dist_dir[i].w + sp * u_dist_illum[i].w) * u_dist_illum[i].rgb;
@@ -46,7 +59,12 @@ vec3 sun_and_ambient(Surface s) {
 #endif
 #ifdef HAS_AMBIENT
     float NoV = max(dot(s.N, s.V), 1e-4);
+#ifdef HAS_LINKS
+    c += link_ambient[group].rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV))
+         * s.occlusion;
+#else
     c += u_ambient.rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV)) * s.occlusion;
+#endif
 #endif
     return c;
 }

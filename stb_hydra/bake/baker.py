@@ -88,7 +88,8 @@ class BakeReport:
 def light_fingerprint(prim: Usd.Prim, time_code: Usd.TimeCode | None = None) -> str:
     """Hash of what a baked light's contribution depends on: its world transform and
     every authored light input (``inputs:*``, ``shaping:*``, ``shadow:*``, ``stb:range``,
-    ``stb:mobility``); ``stb:baked`` itself is left out."""
+    ``stb:mobility``) and its light/shadow-link collection (``collection:lightLink:*``,
+    ``collection:shadowLink:*``); ``stb:baked`` itself is left out."""
     tc = time_code if time_code is not None else Usd.TimeCode.Default()
     stage = prim.GetStage()
     if tc.IsDefault() and stage.HasAuthoredTimeCodeRange():
@@ -99,10 +100,26 @@ def light_fingerprint(prim: Usd.Prim, time_code: Usd.TimeCode | None = None) -> 
     for a in sorted(prim.GetAuthoredAttributes(), key=lambda a: a.GetName()):
         n = a.GetName()
         if n == BAKED_ATTR or not n.startswith(
-            ("inputs:", "shaping:", "shadow:", "stb:range", "stb:mobility", "intensity", "color")
+            (
+                "inputs:",
+                "shaping:",
+                "shadow:",
+                "stb:range",
+                "stb:mobility",
+                "intensity",
+                "color",
+                "collection:lightLink:",
+                "collection:shadowLink:",
+            )
         ):
             continue
         h.update(f"{n}={a.Get(tc)!r};".encode())
+    # Light and shadow linking decide which meshes the light baked into (and what shadowed
+    # it): their authored attributes above, their relationships here (none: unchanged).
+    for r in sorted(prim.GetAuthoredRelationships(), key=lambda r: r.GetName()):
+        n = r.GetName()
+        if n.startswith(("collection:lightLink:", "collection:shadowLink:")):
+            h.update(f"{n}={[str(t) for t in r.GetTargets()]!r};".encode())
     return h.hexdigest()[:24]
 
 

@@ -30,7 +30,7 @@ from .. import limits
 from ..renderer.engine import Engine
 from ..renderer.frame import FrameContext
 from ..renderer.fullscreen import draw_fullscreen
-from ..renderer.gl import park, shader_library
+from ..renderer.gl import park, set_uniform, shader_library
 from ..renderer.graph import Imported
 from ..renderer.lighting.base import READS
 from ..renderer.lighting.reference import ReferenceLighting
@@ -168,6 +168,9 @@ class LightmapBakePass(Pass):
             vao_e.render(moderngl.LINES)  # conservative fringe first ...
             vao_t.render(moderngl.TRIANGLES)  # ... exact interior samples over it
             method.bind_common(frame, light)
+            rp = self.delegate.meshes.get(lay.path)
+            group = rp.mesh.link_group if rp is not None and rp.mesh is not None else 0
+            set_uniform(light, "u_link_group", int(group))  # light linking (bake_light.frag)
             unit = 8
             for name, tex in (("u_pos", pos), ("u_normal", nrm)):
                 tex.use(unit)

@@ -181,7 +181,9 @@ def _lights_tab(s: PreviewSession) -> None:
         if ch:
             s.set_light(p, enabled=on)
         imgui.same_line()
-        if imgui.tree_node(f"{p}  ({rec['type']})"):
+        tag = "  [linked]" if rec["linked"] else ""
+        if imgui.tree_node(f"{p}  ({rec['type']}){tag}"):
+            imgui.text_colored(_GREY, rec["links"])  # light / shadow linking
             ch, v = imgui.drag_float(
                 "intensity", rec["intensity"], 0.05 * max(rec["intensity"], 1.0)
             )

@@ -719,8 +719,10 @@ class PreviewSession:
 
     # -- lights and edits (session layer) --
     def lights(self) -> list[dict[str, Any]]:
-        """Every light: path, type, enabled, and its authored intensity, exposure and
-        colour (what the light list edits)."""
+        """Every light: path, type, enabled, its authored intensity, exposure and
+        colour (what the light list edits), and its light/shadow links in one line
+        (``links``: "lights all, shadowed by all" without linking; ``linked``: a
+        collection is authored)."""
         from pxr import UsdLux
 
         if not self.ok:
@@ -741,6 +743,8 @@ class PreviewSession:
                     "intensity": float(api.GetIntensityAttr().Get() or 0.0),
                     "exposure": float(api.GetExposureAttr().Get() or 0.0),
                     "color": [float(c) for c in (api.GetColorAttr().Get() or (1.0, 1.0, 1.0))],
+                    "links": self.engine.scene_index.links.describe(path),
+                    "linked": self.engine.scene_index.links.is_linked(path),
                 }
             )
         return out

@@ -50,6 +50,7 @@ from .passes import IMPORTS, PassSet, build_passes
 from .render_index import RenderIndex
 from .tasks.aov_output import AovOutputTask
 from .tasks.base import Pass
+from .tasks.gbuffer import LINK_TARGET
 from .tasks.taa import AccumulateTask
 from .tasks.temporal import TemporalTask, halton_jitter
 
@@ -95,6 +96,8 @@ class Engine:
         self._in_sequence = False
         self._requested_aovs: set[str] = {"color"}
         self._graph: CompiledGraph | None = None
+        #: Light linking when the graph was compiled (it adds the G-buffer's g_link).
+        self._graph_links = False
         self._scopes: dict[int, _PassScope] = {}
         self._allocated: tuple[int, int, int] | None = None
         self.method: LightingMethod = self._make_method(
@@ -129,6 +132,7 @@ class Engine:
     def graph(self) -> CompiledGraph:
         """The compiled pass graph (built on first use after a change)."""
         if self._graph is None:
+            self._graph_links = self.delegate.light_table.has_light_links()
             self._graph = compile_graph(self._set.passes, IMPORTS)
             self._allocated = None
             # Each pass's declared access, resolved once per graph, not per frame.
@@ -173,6 +177,8 @@ class Engine:
         if self._allocated == key:
             return
         w, h = self.buffers.size
+        if LINK_TARGET.name not in graph.resources:
+            self.buffers.release_texture(LINK_TARGET.name)  # light linking went away
         for t in graph.textures():
             size = t.size.resolve(w, h)
             if size is None or t.fmt is None:
@@ -280,6 +286,10 @@ class Engine:
             self.render_index.sync_all()
         with timed(self.timings, "commit", None, False):
             self.delegate.commit_resources()
+        if self._graph is not None and (
+            self.delegate.light_table.has_light_links() != self._graph_links
+        ):
+            self._graph = None  # light linking came or went: the G-buffer's targets change
         for w in si.warnings + self.delegate.warnings:
             self._warn_once(w)
 

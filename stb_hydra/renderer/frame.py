@@ -230,6 +230,13 @@ class RenderBuffers:
             self._drop_fbos_using(name)
         self.textures[name] = tex
 
+    def release_texture(self, name: str) -> None:
+        """Free the texture ``name`` (and the framebuffers using it), if allocated."""
+        t = self.textures.pop(name, None)
+        if t is not None:
+            self._drop_fbos_using(name)
+            t.release()
+
     def framebuffer(
         self, name: str, colors: list[str], depth: str | None = None
     ) -> moderngl.Framebuffer:

@@ -2,7 +2,8 @@
 
 * Geometry: one vertex/index buffer pair per ``geometry_key`` (instance
   prototypes share it).
-* Draw batches: meshes grouped by (geometry, resolved material, dynamic) into
+* Draw batches: meshes grouped by (geometry, resolved material, dynamic, light/shadow
+  link groups) into
   instanced draws with per-instance model matrices for this and the previous
   frame (motion vectors).
 * Lights: the FoV-culled std430 buffer (``light_buffer``), uploaded only when
@@ -37,6 +38,7 @@ _BATCH_BITS = (
     | D.DirtyVisibility
     | D.DirtyMaterialId
     | D.DirtyStbFlags
+    | D.DirtyCategories
 )
 
 
@@ -61,6 +63,8 @@ class DrawBatch:
     prev_models: np.ndarray  # (k, 4, 4) float32 previous frame
     #: World AABB (render frame, metres) of every instance.
     bounds: tuple[np.ndarray, np.ndarray] = (np.zeros(3), np.zeros(3))
+    #: (light-link group, shadow-link group) of its meshes (``scene/links.py``).
+    links: tuple[int, int] = (0, 0)
     instance_buffer: moderngl.Buffer | None = None
     vaos: dict[int, moderngl.VertexArray] = field(default_factory=dict)
 
@@ -227,8 +231,13 @@ class GLRenderDelegate(RenderDelegate):
         return material_params(sp.material if sp is not None else None, mesh)
 
     def batch_key(self, path: str, mesh: prims.MeshPrim) -> tuple:
-        """What groups meshes into one instanced draw batch."""
-        return (mesh.geometry_key or path, self.resolve_material(mesh).key(), mesh.dynamic)
+        """What groups meshes into one instanced draw batch: geometry, material,
+        dynamic, (light-link group, shadow-link group) -- ``DrawBatch.links`` is k[3]."""
+        return self._batch_key(mesh.geometry_key or path, self.resolve_material(mesh), mesh)
+
+    @staticmethod
+    def _batch_key(key_g: str, mp: MaterialParams, m: prims.MeshPrim) -> tuple:
+        return (key_g, mp.key(), m.dynamic, (m.link_group, m.shadow_group))
 
     def texture_files(self) -> set[str]:
         """Files of the textures in use (every tile of a UDIM set), resolved paths."""
@@ -293,7 +302,7 @@ class GLRenderDelegate(RenderDelegate):
             if key_g not in self.geometry:
                 self._upload_geometry(path, m)
             mp = self.resolve_material(m)
-            k = (key_g, mp.key(), m.dynamic)  # == self.batch_key(path, m)
+            k = self._batch_key(key_g, mp, m)  # == self.batch_key(path, m)
             xf = m.world_transforms()
             groups.setdefault(k, []).append(xf)
             meta[k] = (key_g, mp, m.dynamic)
@@ -332,6 +341,7 @@ class GLRenderDelegate(RenderDelegate):
                 prev = models
             gk, mp, dyn = meta[k]
             b = DrawBatch(gk, mp, dyn, models, prev, gbounds.get(k, (np.zeros(3), np.zeros(3))))
+            b.links = k[3]
             self._upload_instances(b)
             new.append(b)
             prev_map[k] = models

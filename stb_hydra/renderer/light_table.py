@@ -16,6 +16,7 @@ import numpy as np
 
 from ..scene import prims
 from ..scene.lights import influence_range
+from ..scene.links import ALL_GROUPS, LinkMasks
 from ..scene.prims import NO_CONE_CUTOFF_RAD, LightPrim
 from . import shader_constants as sc
 
@@ -60,6 +61,10 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "area_size": ((2,), np.float32, 0.0),
     "area_kind": ((), np.int8, 0),
     "area_radiance": ((), np.float32, 0.0),
+    # Light / shadow linking (scene/links.py): masks over the link and shadow groups
+    # (every bit set: the light lights / is shadowed by everything).
+    "light_link_mask": ((), np.uint32, ALL_GROUPS),
+    "shadow_link_mask": ((), np.uint32, ALL_GROUPS),
     "version": ((), np.int64, 0),
 }
 
@@ -102,6 +107,8 @@ class LightTable:
         self.rows: dict[str, int] = {}
         self.paths: list[str | None] = []
         self.version = 0  # bumped on any write/free
+        self._links_key = -1
+        self._links = False
         self._grow(max(capacity, 1))
 
     def __len__(self) -> int:
@@ -220,8 +227,28 @@ class LightTable:
         c["area_kind"][row] = kind
         c["area_size"][row] = size
         c["area_radiance"][row] = rad
+        c["light_link_mask"][row] = lp.light_link_mask
+        c["shadow_link_mask"][row] = lp.shadow_link_mask
         self.version += 1
         c["version"][row] = self.version
+
+    def set_link_masks(self, row: int, masks: LinkMasks) -> None:
+        """A light's link masks changed (its collection, or the groups moved)."""
+        c = self.cols
+        c["light_link_mask"][row] = masks.light
+        c["shadow_link_mask"][row] = masks.shadow
+        self.version += 1
+        c["version"][row] = self.version
+
+    def has_light_links(self) -> bool:
+        """Some light lights less than everything: the G-buffer carries link groups and
+        the lighting shaders test masks (cached per table version)."""
+        if self._links_key != self.version:
+            n = self._n_rows
+            c = self.cols
+            self._links = bool(np.any(c["live"][:n] & (c["light_link_mask"][:n] != ALL_GROUPS)))
+            self._links_key = self.version
+        return self._links
 
     def write_transform(self, row: int, lp: LightPrim) -> None:
         c = self.cols

@@ -25,6 +25,10 @@ class DistantLights:
     sun: SunSetup = field(default_factory=SunSetup)
     extra: list = field(default_factory=list)
     ambient: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: Light-table rows: the sun then the extra distant lights (their order above),
+    #: and the enabled dome lights (light linking reads their masks).
+    rows: tuple[int, ...] = ()
+    dome_rows: tuple[int, ...] = ()
 
 
 @dataclass
@@ -67,12 +71,16 @@ class SunShadowMap:
 
 @dataclass
 class LightBuffer:
-    """The uploaded in-view light SSBO (binding 0) and what the upload did."""
+    """The uploaded in-view light SSBO (binding 0) and what the upload did; with light
+    linking (``links``) also the link SSBO (``SSBO_LIGHT_LINKS``: masks of the in-view
+    lights in the same order, of the distant lights, ambient per link group)."""
 
     ssbo: moderngl.Buffer | None
     count: int
     has_shadows: bool = False
     uploaded: bool = False
+    links: bool = False
+    link_ssbo: moderngl.Buffer | None = None
 
 
 @dataclass

@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     )
     from .delegate import RenderDelegate
 
-_LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyCollection | D.DirtyResource
+_LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyResource
 
 
 class RenderPrim:
@@ -60,6 +60,10 @@ class LightSprim(RenderPrim):
             self.light = lp
             self.delegate.write_light(self.row, lp)
         else:
+            if bits & D.DirtyCollection:  # only the link masks (scene/links.py)
+                m = ds.link_masks()
+                lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
+                self.delegate.light_table.set_link_masks(self.row, m)
             if bits & D.DirtyTransform and not ds.update_transform(lp):
                 lp = ds.light()
                 self.light = lp
@@ -119,9 +123,10 @@ class MeshRprim(RenderPrim):
                 m.transform = old.transform
                 m.instance_transforms = old.instance_transforms
                 m.visible, m.material, m.dynamic = old.visible, old.material, old.dynamic
+                m.link_group, m.shadow_group = old.link_group, old.shadow_group
             else:
                 bits |= D.DirtyTransform | D.DirtyInstancer | D.DirtyVisibility
-                bits |= D.DirtyMaterialId | D.DirtyStbFlags
+                bits |= D.DirtyMaterialId | D.DirtyStbFlags | D.DirtyCategories
             self.mesh = m
         if bits & D.DirtyTransform:
             xf = ds.world_matrix() if ds.entry.instancer is None else np.eye(4)
@@ -135,6 +140,8 @@ class MeshRprim(RenderPrim):
             m.material = ds.material()
         if bits & D.DirtyStbFlags or bits & D.DirtyTransform:
             m.dynamic = ds.dynamic()
+        if bits & D.DirtyCategories:
+            m.link_group, m.shadow_group = ds.link_groups()
         self.pending_bits |= bits
 
     def _finite_xforms(self, xfs: np.ndarray, what: str) -> np.ndarray:

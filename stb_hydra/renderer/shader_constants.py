@@ -46,6 +46,9 @@ SSBO_STB_CLUSTERS = 5
 SSBO_STB_CLUSTER_LIGHTS = 6
 #: STB's FoV light records in the clusters' Morton order (contiguous per cluster).
 SSBO_STB_CLUSTER_RECORDS = 7
+#: Light linking (``LightBuffer.link_ssbo``, common/links.glsl): the distant lights'
+#: masks, ambient per link group, then one mask per in-view light (light-buffer order).
+SSBO_LIGHT_LINKS = 8
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -54,7 +57,8 @@ IMAGE_UNIT_PIXEL_TERMS = 1
 IMAGE_UNIT_BIGTILE = 2
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
-#: ``LightingMethod.bind_common`` hands out from 0 (at most 9: G-buffer, LTC, IES, atlas, sun).
+#: ``LightingMethod.bind_common`` hands out from 0 (at most 10: G-buffer and its link
+#: groups, LTC, IES, atlas, sun).
 TEX_UNIT_HIZ = 12
 
 # --- Packed light record (struct Light, common/lights.glsl) ---------------------------
@@ -190,6 +194,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_SUPERS_MAX": str(limits.BIG_TILE_SUPERS_MAX),
         "LIM_MATERIAL_TEXTURE_SLOTS": str(limits.MATERIAL_TEXTURE_SLOTS),
         "LIM_UDIM_FIRST_TILE": str(limits.UDIM_FIRST_TILE),
+        "LIM_LINK_GROUPS": str(limits.MAX_LIGHT_LINK_GROUPS),
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),
@@ -200,6 +205,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_CLUSTERS": str(SSBO_STB_CLUSTERS),
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
+        "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),

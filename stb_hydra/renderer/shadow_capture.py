@@ -29,6 +29,7 @@ from ..shadows.capture import (
 from ..shadows.culling import boxes_in_sphere, frustum_planes, visible_faces
 from .depth_draw import DepthDraw
 from .gl import set_uniform, shader_library
+from .link_masks import batch_keep
 
 if TYPE_CHECKING:
     from .gl_delegate import GLRenderDelegate
@@ -142,12 +143,13 @@ class ShadowCapturer:
 
     def visible(self, delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> np.ndarray:
         """(F, B) bool: batch b is drawn into face f (F = 6 omni, 1 spot); static maps
-        skip dynamic geometry."""
+        skip dynamic geometry, and every map the batches outside the light's shadow link."""
         arr = delegate.batch_arrays()
         vps = capture_view_projs(c)
         keep = boxes_in_sphere(np.array(c.position), np.array(c.range), arr.lo, arr.hi)
         if not dynamic:
             keep &= ~arr.dynamic
+        keep &= batch_keep(arr.batches, c.shadow_mask)
         if not self.cull:
             return np.broadcast_to(keep, (len(vps), len(keep)))
         return visible_faces(frustum_planes(vps), arr.lo, arr.hi) & keep

@@ -467,7 +467,6 @@ def _read_light_into(
     ok &= _read_shaping(lp, prim, a, ctx)
     ok &= _set_intensity(lp, prim, a, ctx, radiance, proj, normalize)
     _read_shadows(lp, a, ctx)
-    _read_linking(lp, prim, a, ctx)
     _finish_photometry(lp, a)
     if a.legacy:
         legacy = ", ".join(sorted(set(a.legacy)))
@@ -745,25 +744,6 @@ def _read_shadows(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> None:
         mob = prims.MOBILITY_DYNAMIC
     lp.mobility = str(mob)
     lp.baked = bool(a.get("stb:baked", False)) and lp.mobility == prims.MOBILITY_STATIC
-
-
-def _read_linking(lp: LightPrim, prim: Usd.Prim, a: _Attrs, ctx: LightReadContext) -> None:
-    """``default_linking`` False when light/shadow linking is authored (unsupported:
-    warned once per stage)."""
-    for name in ("collection:lightLink:includeRoot", "collection:shadowLink:includeRoot"):
-        inc = a.attr(name)
-        if inc is not None and inc.Get() is False:
-            lp.default_linking = False
-    if a.any_prefix("collection:"):
-        for rel in prim.GetAuthoredRelationships():
-            if rel.GetName().startswith("collection:") and rel.GetTargets():
-                lp.default_linking = False
-    if not lp.default_linking:
-        ctx.warn_once(
-            "linking",
-            f"light <{lp.path}>: light/shadow linking is not supported; lights affect "
-            "all geometry (one warning per stage)",
-        )
 
 
 def _check_peak_intensity(lp: LightPrim, ctx: LightReadContext) -> bool:

@@ -46,6 +46,9 @@ MATERIAL = L("material")
 CAMERA_PARAMS = L("camera/params")
 CAMERA_CLIP = L("camera/clippingPlanes")
 INSTANCER = L("instancer")  # per-instance transforms of PointInstancer prototypes
+#: A mesh's light-link / shadow-link groups (``scene/links.py``): set by the link
+#: resolver when a collection or the geometry changed, never by a mesh attribute.
+LINKS = L("linking")
 STB = L("stb")  # stb:* attributes on geometry
 
 #: Everything: used for "re-read the whole prim".
@@ -71,7 +74,9 @@ class DirtyBits(IntFlag):
     DirtyInstancer = 1 << 11
     DirtyClipPlanes = 1 << 12
     DirtyStbFlags = 1 << 13
-    AllDirty = (1 << 14) - 1
+    #: Hydra's DirtyCategories: a mesh's light/shadow-link membership (link groups).
+    DirtyCategories = 1 << 14
+    AllDirty = (1 << 15) - 1
 
 
 D = DirtyBits
@@ -97,6 +102,7 @@ _MESH_BITS = {
     MATERIAL_BINDINGS: D.DirtyMaterialId,
     INSTANCER: D.DirtyInstancer,
     STB: D.DirtyStbFlags,
+    LINKS: D.DirtyCategories,
 }
 _CAMERA_BITS = {
     XFORM: D.DirtyTransform,

@@ -156,6 +156,11 @@ class LightPrim:
     texture_file: str | None = None
     #: Light-linking: False when either collection is not the default "everything".
     default_linking: bool = True
+    #: Bit g: the light lights the meshes of light-link group g (``scene/links.py``;
+    #: every bit set without light linking).
+    light_link_mask: int = 0xFFFFFFFF
+    #: Bit g: the meshes of shadow-link group g cast this light's shadow.
+    shadow_link_mask: int = 0xFFFFFFFF
     #: One-line human-readable problems found while reading this light.
     warnings: list[str] = field(default_factory=list)
     #: Instance id for lights expanded from a PointInstancer, else -1.
@@ -195,6 +200,9 @@ class MeshPrim:
     double_sided: bool = False
     #: Key shared by meshes with identical topology/points (instance prototypes).
     geometry_key: str = ""
+    #: Light-link and shadow-link groups (``scene/links.py``; 0 without linking).
+    link_group: int = 0
+    shadow_group: int = 0
 
     @property
     def num_instances(self) -> int:

@@ -44,6 +44,7 @@ from .instancing import (
     proxy_paths_for,
 )
 from .lights import LightReadContext, light_type_of, read_light, set_transform
+from .links import LinkMasks, LinkResolver
 from .materials import bound_material_path, read_material
 from .scene_index import AddedPrimEntry, DirtiedPrimEntry, SceneIndex, SceneIndexPrim
 
@@ -130,7 +131,14 @@ class LightDataSource(_DataSource):
         e.vis_hint = None
         e.names_hint = None
         lp.instance_id = e.instance_id
+        m = idx.links.light_masks(e.path)
+        lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
+        lp.default_linking = not idx.links.is_linked(e.path)
         return lp
+
+    def link_masks(self) -> LinkMasks:
+        """The light's masks over the link and shadow groups (``scene/links.py``)."""
+        return self.index.links.light_masks(self.entry.path)
 
     def update_transform(self, lp: prims.LightPrim) -> bool:
         """Re-read only the transform into ``lp``; returns False when the world
@@ -160,6 +168,10 @@ class MeshDataSource(_DataSource):
 
     def geometry_key(self) -> str:
         return self.index.geometry_key(self.entry)
+
+    def link_groups(self) -> tuple[int, int]:
+        """(light-link group, shadow-link group) of the mesh (``scene/links.py``)."""
+        return self.index.links.mesh_groups(self.entry.path)
 
 
 class CameraDataSource(_DataSource):
@@ -242,6 +254,8 @@ class StageSceneIndex(SceneIndex):
         self._mtlx_docs = mtlx.MtlxDocumentCache()
         self._mtlx_prims: set[str] = set()
         self._pending = _Pending()
+        #: Light/shadow linking: link groups of meshes, masks of lights.
+        self.links = LinkResolver(stage, self.warn_once)
         self._update_frame()
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._on_changed, stage)
         self._populate_all()
@@ -421,6 +435,7 @@ class StageSceneIndex(SceneIndex):
 
     def _populate_all(self) -> None:
         added = self._populate(self.stage.GetPseudoRoot(), tv_xform=False, tv_vis=False)
+        self.links.resolve()  # before anyone syncs the added prims
         self._send_added(added)
 
     def _ancestor_state(self, prim: Usd.Prim) -> tuple[bool, bool]:
@@ -594,6 +609,11 @@ class StageSceneIndex(SceneIndex):
     def _add_entry(self, e: _Entry, tv: set[str], added: list[AddedPrimEntry]) -> None:
         e.ds = _ds_class(e.prim_type)(self, e)
         self._entries[e.path] = e
+        if e.prim is not None:
+            if e.prim_type == prims.MESH:
+                self.links.add_mesh(e.path, e.path, e.instancer)
+            elif e.prim_type in prims.LIGHT_TYPES:
+                self.links.add_light(e.path, e.prim, e.names_hint)
         if tv:
             self._time_varying[e.path] = tv
         self._sorted_valid = False
@@ -692,6 +712,7 @@ class StageSceneIndex(SceneIndex):
             for p, locs in self._time_varying.items()
             if p not in refreshed
         ]
+        entries += self._resolve_links(refreshed)  # re-expanded instancers' prototypes
         self._send_dirtied(entries)
         return len(entries)
 
@@ -753,6 +774,9 @@ class StageSceneIndex(SceneIndex):
         if "/" in resync_roots:
             self._full_rebuild()
             return
+        for ppath, names in props.items():
+            if any(n.startswith("collection:") for n in names):
+                self.links.collections_changed(ppath)  # a link collection may read it
         touched: set[str] = set()
         for root in _collapse(resync_roots):
             touched.update(self._resync_path(root))
@@ -762,10 +786,23 @@ class StageSceneIndex(SceneIndex):
             if any(ppath == r or ppath.startswith(r + "/") for r in resync_roots):
                 continue
             self._dirty_for_props(ppath, names, dirty)
-        if dirty:
-            self._send_dirtied(
-                DirtiedPrimEntry(p, frozenset(ls)) for p, ls in dirty.items() if p not in touched
-            )
+        entries = [
+            DirtiedPrimEntry(p, frozenset(ls)) for p, ls in dirty.items() if p not in touched
+        ]
+        entries += self._resolve_links(touched)
+        if entries:
+            self._send_dirtied(entries)
+
+    def _resolve_links(self, skip: set[str]) -> list[DirtiedPrimEntry]:
+        """Re-resolve light/shadow links if geometry, lights or collections changed:
+        dirty the meshes whose groups and the lights whose masks moved (``skip``: prims
+        just re-added, synced in full anyway)."""
+        meshes, lights = self.links.resolve()
+        out = [DirtiedPrimEntry(p, frozenset({loc.LINKS})) for p in meshes if p not in skip]
+        out += [
+            DirtiedPrimEntry(p, frozenset({loc.LIGHT_COLLECTION})) for p in lights if p not in skip
+        ]
+        return out
 
     def _map_prototypes(self, roots: set[str]) -> set[str]:
         out: set[str] = set()
@@ -800,6 +837,7 @@ class StageSceneIndex(SceneIndex):
         self._proto_users.clear()
         self._geom_cache.clear()
         self._mtlx_prims.clear()
+        self.links.clear()
         self._sorted_valid = False
         self._send_removed(removed)
         self._update_frame()
@@ -810,6 +848,7 @@ class StageSceneIndex(SceneIndex):
         for p in paths:
             e = self._entries.pop(p, None)
             self._time_varying.pop(p, None)
+            self.links.remove(p)
             if e is not None and e.prim is not None:
                 for k in [k for k in self._geom_cache if k[0] == p]:
                     del self._geom_cache[k]

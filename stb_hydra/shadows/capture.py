@@ -47,15 +47,21 @@ _FACES = (  # forward, up
 )
 
 
+#: ``Capture.shadow_mask`` of a light without shadow linking (every group casts).
+ALL_SHADOW_GROUPS = 0xFFFFFFFF
+
+
 @dataclass(frozen=True)
 class Capture:
-    """The light transform a map is captured with (exact-compare 'moved' key)."""
+    """The light transform a map is captured with (exact-compare 'moved' key), and the
+    shadow-link groups that cast into it (``scene/links.py``: a mask change re-captures)."""
 
     position: tuple[float, float, float]
     direction: tuple[float, float, float]
     range: float
     near: float
     spot_half_angle: float  # radians; <= 0: omni
+    shadow_mask: int = ALL_SHADOW_GROUPS
 
     @property
     def omni(self) -> bool:
@@ -74,6 +80,7 @@ def capture_for(
     radius: float,
     cone_cutoff_rad: float,
     emission: int,
+    shadow_mask: int = ALL_SHADOW_GROUPS,
 ) -> Capture:
     """Capture parameters of a light (positions in metres, cone cut-off in radians)."""
     half = float(cone_cutoff_rad)
@@ -86,16 +93,25 @@ def capture_for(
         rng,
         near,
         min(half * 1.02 + math.radians(1.0), math.radians(85.0)) if spot else 0.0,
+        int(shadow_mask),
     )
 
 
 def capture_for_row(table: Any, row: int) -> Capture:
     """:func:`capture_for` of light-table row ``row`` (a ``LightTable`` or anything with
     its ``position``, ``direction``, ``range``, ``radius``, ``cone_cutoff`` and
-    ``emission`` columns)."""
+    ``emission`` columns; ``shadow_link_mask`` if it has one)."""
     t, r = table, row
+    masks = getattr(t, "shadow_link_mask", None)
+    mask = ALL_SHADOW_GROUPS if masks is None else int(masks[r])
     return capture_for(
-        t.position[r], t.direction[r], t.range[r], t.radius[r], t.cone_cutoff[r], t.emission[r]
+        t.position[r],
+        t.direction[r],
+        t.range[r],
+        t.radius[r],
+        t.cone_cutoff[r],
+        t.emission[r],
+        mask,
     )
 
 

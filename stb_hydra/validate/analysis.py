@@ -27,6 +27,7 @@ import numpy as np
 from pxr import Sdf, Tf, Usd
 
 from ..scene import prims
+from ..scene.links import LIGHT_LINK
 from ..scene.prims import LightPrim, MeshPrim
 
 
@@ -54,6 +55,9 @@ class StageAnalysis:
     #: stage units/up-axis -> render frame (row-vector 4x4).
     render_from_stage: np.ndarray = field(default_factory=lambda: np.eye(4))
     warnings: list[str] = field(default_factory=list)
+    #: Light-link members of each light with a non-default light link: scene light
+    #: path -> geometry prims its ``collection:lightLink`` holds (``scene/links.py``).
+    light_link_members: dict[str, list[str]] = field(default_factory=dict)
 
     def local_lights(self) -> list[LightRecord]:
         """Valid local (sampled, shadow-mapped) lights."""
@@ -127,6 +131,9 @@ def build_analysis(stage: Usd.Stage) -> StageAnalysis:
             m = ri.delegate.meshes[path].mesh
             if m is not None and m.visible and len(m.indices):
                 out.meshes.append(m)
+        for path in sorted(ri.delegate.lights):
+            if si.links.collection(path, LIGHT_LINK) is not None:
+                out.light_link_members[path] = si.links.members(path, LIGHT_LINK)
         out.warnings = list(dict.fromkeys(si.warnings + ri.delegate.warnings))
         return out
     finally:

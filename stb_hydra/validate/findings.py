@@ -171,6 +171,23 @@ RULES: dict[str, Rule] = {
             "a baked light moved, changed or vanished since the bake (or is not in it)",
             "re-run stb bake on the edited scene",
         ),
+        # -- LightLinks (stage validator; light and shadow linking, scene/links.py) --
+        _r(
+            "link_target_missing",
+            WARNING,
+            "LightLinks",
+            "a light's light-link or shadow-link collection names a prim or collection "
+            "that does not exist",
+            "fix or remove the includes/excludes target (a typo, or a prim renamed or "
+            "deleted since)",
+        ),
+        _r(
+            "link_matches_nothing",
+            WARNING,
+            "LightLinks",
+            "a light's light-link collection holds no geometry: the light lights nothing",
+            "include the prims it should light, or author collection:lightLink:includeRoot = true",
+        ),
         # -- ShadowBudget (stage validator) --
         _r(
             "shadow_count",

@@ -26,6 +26,7 @@ from .common import crash_hook
 from .findings import ERROR, HINT_SEP, INFO, KEYWORD, PLUGIN_NAME, WARNING, Finding
 from .rules_bake import check_bake
 from .rules_lights import check_ies, check_light_values
+from .rules_links import check_links
 from .rules_overlap import check_overlap
 from .rules_photometry import check_photometry
 from .rules_shadows import check_shadows
@@ -49,6 +50,7 @@ TASKS: dict[str, tuple[str, Callable]] = {
     "StageUnits": ("stage", check_units),
     "AssetPaths": ("stage", check_asset_paths),
     "StaticBake": ("stage", check_bake),
+    "LightLinks": ("stage", check_links),
 }
 
 

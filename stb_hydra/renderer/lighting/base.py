@@ -34,7 +34,7 @@ from ..records import (
     ShadowSlots,
     SunShadowMap,
 )
-from ..shader_constants import SSBO_LIGHTS, SSBO_SHADOW_MAPS
+from ..shader_constants import SSBO_LIGHT_LINKS, SSBO_LIGHTS, SSBO_SHADOW_MAPS
 from .options import Schema
 
 if TYPE_CHECKING:
@@ -51,6 +51,9 @@ GBUFFER_INPUTS: tuple[Tex, ...] = (
     Tex("g_emission", "rgba16f"),
 )
 GBUFFER_SAMPLERS = tuple(t.name for t in GBUFFER_INPUTS)
+#: The pixel's light-link group (``tasks/gbuffer.LINK_TARGET``): read only by scenes
+#: with light linking.
+LINK_INPUT = Tex("g_link", "r8ui")
 
 #: What every lighting method reads.
 READS: tuple[Resource, ...] = (
@@ -111,7 +114,14 @@ class LightingMethod:
 
     def reads(self) -> tuple[Resource, ...]:
         extra = (Tex(f"hiz{self.hiz_level}", "rg32f"),) if self.hiz_level else ()
-        return (*READS, *extra)
+        links = (LINK_INPUT,) if self.light_links else ()
+        return (*READS, *extra, *links)
+
+    @property
+    def light_links(self) -> bool:
+        """The scene has light linking (``g_link`` and the link SSBO exist)."""
+        d = self.delegate
+        return d is not None and d.light_table.has_light_links()
 
     def debug_passes(self) -> list[Pass]:
         """Passes drawing ``debug_aovs`` (each writes ``debug_<aov>``)."""
@@ -127,6 +137,8 @@ class LightingMethod:
             defines["HAS_SUN_SHADOW"] = True
         if float(frame.ambient.max()) > 0:
             defines["HAS_AMBIENT"] = True
+        if frame.get(LightBuffer).links:
+            defines["HAS_LINKS"] = True  # common/links.glsl
         lights = frame.get(InViewLights)
         if self.uses_local_lights and lights.count:
             if self.delegate is not None and self.delegate.has_ies and lights.has_ies:
@@ -152,6 +164,12 @@ class LightingMethod:
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
+        if lb.link_ssbo is not None:
+            lb.link_ssbo.bind_to_storage_buffer(SSBO_LIGHT_LINKS)
+        if LINK_INPUT.name in prog:
+            tex[LINK_INPUT.name].use(unit)
+            cast(moderngl.Uniform, prog[LINK_INPUT.name]).value = unit
+            unit += 1
         if "u_ltc" in prog:  # area lights' GGX specular (common/area.glsl)
             shader_library(frame.ctx).ltc_texture().use(unit)
             cast(moderngl.Uniform, prog["u_ltc"]).value = unit

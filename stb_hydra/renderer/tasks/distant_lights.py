@@ -38,6 +38,7 @@ class DistantLightsTask(Pass):
                 )
                 for r in order[1 : 1 + MAX_EXTRA_DISTANT]
             ]
+            rec.rows = tuple(int(r) for r in order[: 1 + MAX_EXTRA_DISTANT])
             if len(order) > 1 + MAX_EXTRA_DISTANT:
                 frame.warn(
                     f"{len(order)} distant lights: only the {1 + MAX_EXTRA_DISTANT} brightest"
@@ -46,6 +47,7 @@ class DistantLightsTask(Pass):
         domes = t.rows_of_type(prims.DOME_LIGHT)
         domes = domes[t.enabled[domes]]
         amb = t.intensity[domes].sum(axis=0).astype(np.float64) if len(domes) else np.zeros(3)
+        rec.dome_rows = tuple(int(r) for r in domes)
         rec.ambient = amb + frame.settings.ambient
         frame.put(rec)
 

@@ -32,8 +32,9 @@ from ..fullscreen import fullscreen_vao
 from ..gl import shader_library
 from ..graph import Imported, Rec, Resource, Tex
 from ..light_buffer import cull_lights, pack_lights
+from ..link_masks import LinkBufferUploader, pack_link_buffer
 from ..records import FrameBlock
-from ..shader_constants import SSBO_LIGHTS
+from ..shader_constants import SSBO_LIGHT_LINKS, SSBO_LIGHTS
 from .base import Pass
 
 if TYPE_CHECKING:
@@ -160,6 +161,7 @@ class LightmapTask(Pass):
         self.gpu_bytes = 0
         self._baked_ssbo: moderngl.Buffer | None = None
         self._baked_key: tuple[int, bytes] | None = None
+        self._links = LinkBufferUploader()
         #: Baked lights evaluated per frame on pixels without a lightmap.
         self.baked_in_view = 0
 
@@ -173,7 +175,11 @@ class LightmapTask(Pass):
             self._has = bool(self.delegate.light_table.baked.any()) or (
                 self.stage is not None and stage_has_lightmaps(self.stage)
             )
-        return (self.reads, self.writes) if self._has else ((), ())
+        if not self._has:
+            return (), ()
+        if self.delegate.light_table.has_light_links():
+            return (*self.reads, Tex("g_link", "r8ui")), self.writes
+        return self.reads, self.writes
 
     def _load(self, frame: FrameContext) -> list[_Lightmapped]:
         """Every baked mesh's triangles and lightmap, packed into one vertex buffer and
@@ -279,7 +285,14 @@ class LightmapTask(Pass):
 
     def _bind_gbuffer(self, frame: FrameContext, prog: moderngl.Program) -> int:
         unit = 0
-        for name in ("g_depth", "g_normal", "g_base_rough", "g_f0_metal", "lightmap_mask"):
+        for name in (
+            "g_depth",
+            "g_normal",
+            "g_base_rough",
+            "g_f0_metal",
+            "g_link",
+            "lightmap_mask",
+        ):
             if name == "lightmap_mask" and "u_mask" not in prog:
                 continue
             if name != "lightmap_mask" and name not in prog:
@@ -349,6 +362,11 @@ class LightmapTask(Pass):
             defines["HAS_IES"] = True
         if bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))):
             defines["HAS_CONES"] = True
+        if t.has_light_links():  # the baked lights' masks, in their buffer's order
+            defines["HAS_LINKS"] = True
+            self._links.upload(ctx, pack_link_buffer(t, rows)).bind_to_storage_buffer(
+                SSBO_LIGHT_LINKS
+            )
         prog = shader_library(ctx).program("fullscreen.vert", "bake_dynamic.frag", defines)
         unit = self._bind_gbuffer(frame, prog)
         if "u_ies" in prog and d.ies_texture is not None:
@@ -363,6 +381,7 @@ class LightmapTask(Pass):
             d.light_ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
 
     def release(self) -> None:
+        self._links.release()
         if self._baked_ssbo is not None:
             self._baked_ssbo.release()
             self._baked_ssbo = None

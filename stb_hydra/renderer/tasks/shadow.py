@@ -8,10 +8,12 @@ from typing import TYPE_CHECKING
 import moderngl
 import numpy as np
 
+from ...scene.links import ALL_GROUPS
 from ..camera import ViewSetup, look_at, orthographic
 from ..depth_draw import DepthDraw
 from ..frame import FrameContext
 from ..graph import Imported, Rec
+from ..link_masks import shadow_batches
 from ..records import DistantLights, SunShadowMap
 from .base import Pass
 
@@ -39,7 +41,7 @@ class SunShadowTask(Pass):
     ``DistantLights``) and renders its depth map (``SunShadowMap``)."""
 
     name = "shadow"
-    reads = (Imported("meshes"), Rec(DistantLights))
+    reads = (Imported("meshes"), Imported("light_table"), Rec(DistantLights))
     writes = (Rec(DistantLights), Rec(SunShadowMap))
 
     def __init__(self, delegate: GLRenderDelegate) -> None:
@@ -47,9 +49,13 @@ class SunShadowTask(Pass):
         self.texture: moderngl.Texture | None = None
         self.fbo: moderngl.Framebuffer | None = None
         self._light_vp: np.ndarray | None = None
+        self._shadow_mask = ALL_GROUPS
 
     def prepare(self, frame: FrameContext) -> None:
-        sun = frame.get(DistantLights).sun
+        dist = frame.get(DistantLights)
+        sun = dist.sun
+        t = self.delegate.light_table
+        self._shadow_mask = int(t.shadow_link_mask[dist.rows[0]]) if dist.rows else ALL_GROUPS
         rec = SunShadowMap()
         frame.put(rec)
         if not (sun.enabled and sun.shadow):
@@ -113,7 +119,7 @@ class SunShadowTask(Pass):
         draw = DepthDraw(ctx, "depth_only.vert", "depth_only.frag")
         draw.set("u_light_view_proj", np.asarray(self._light_vp, dtype=np.float32))
         delegate = self.delegate
-        for b in delegate.batches:
+        for b in shadow_batches(delegate.batches, self._shadow_mask):
             draw.draw(delegate, b)
         ctx.disable(moderngl.DEPTH_TEST)
 
