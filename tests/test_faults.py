@@ -261,13 +261,12 @@ def SphereLight "L"
 @pytest.mark.parametrize("name", ["bad.png", "bad.exr"])
 def test_corrupt_texture_warns_and_falls_back(gl_ctx, tmp_path, testdata, name):
     """A truncated PNG / EXR behind a UsdPreviewSurface input: one warning naming the
-    material, and the texture reader's ``inputs:fallback`` is used (UsdUVTexture's rule
-    for an unreadable file): the image equals the same scene with that colour authored
-    as a constant. Textures on surfaces are not sampled (docs: materials);
-    the one texture that is read, a DomeLight's, is covered in test_fuzz_regressions."""
+    material and the file, and the texture reader's ``inputs:fallback`` is used
+    (UsdUVTexture's rule for an unreadable file): the image equals the same scene with
+    that colour authored as a constant (docs/MATERIALS.md)."""
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
-    from tests.stagegen import usda_stage
+    from pxr import Usd
 
     src = (
         (testdata / "usd/luxtest/dome_grid_2k.exr").read_bytes()[:5000]
@@ -280,7 +279,9 @@ def test_corrupt_texture_warns_and_falls_back(gl_ctx, tmp_path, testdata, name):
     for text in (TEX_USDA % (connect, name), TEX_USDA % ("", name)):
         path = tmp_path / "scene.usda"
         path.write_text(text)
-        eng = Engine(usda_stage(path.read_text()), RenderSettings(width=32, height=18), ctx=gl_ctx)
+        # Opened from its file, so './bad.*' resolves next to it.
+        stage = Usd.Stage.Open(str(path))
+        eng = Engine(stage, RenderSettings(width=32, height=18), ctx=gl_ctx)
         try:
             eng.request_aovs({"color"})
             eng.render(None)
@@ -288,6 +289,7 @@ def test_corrupt_texture_warns_and_falls_back(gl_ctx, tmp_path, testdata, name):
             warns.append(list(eng.warnings))
         finally:
             eng.release()
-    assert [w for w in warns[0] if "</Looks/Mat>" in w and "diffuseColor" in w], warns[0]
+    hits = [w for w in warns[0] if "</Looks/Mat>" in w and name in w]
+    assert len(hits) == 1, warns[0]
     assert np.isfinite(imgs[0]).all() and imgs[0][..., :3].mean() > 0
     np.testing.assert_array_equal(imgs[0], imgs[1])
