@@ -38,6 +38,8 @@ uniform float u_occlusion;
 uniform vec3 u_normal_const;        // tangent-space normal of an untextured input
 uniform int u_pv3_slot;             // slot a float3 primvar (v_attr.xyz) drives, -1 none
 uniform int u_pv1_slot;             // slot a float primvar (v_attr.w) drives, -1 none
+uniform float u_clearcoat;
+uniform float u_clearcoat_roughness;
 
 vec4 input_value(int slot, vec4 constant) {
     if (u_pv3_slot == slot) return vec4(v_attr.xyz, 1.0);
@@ -55,6 +57,12 @@ vec3 perturb_normal(vec3 N, vec3 ts) {
     vec3 n = ts.x * T + ts.y * B + ts.z * N;
     return dot(n, n) > 1e-12 ? normalize(n) : N;
 }
+#endif
+
+#ifdef HAS_CLEARCOAT
+// Clearcoat weight and roughness -> g_coat (rg16f) at COAT_TARGET_LOCATION (only for
+// scenes with a coated material; renderer/tasks/gbuffer.py).
+layout(location = COAT_TARGET_LOCATION) out vec2 o_coat;
 #endif
 
 #ifdef HAS_LINKS
@@ -87,6 +95,13 @@ void main() {
     f0_dielectric = u_f0_dielectric;
     vec3 ts = mat_value(SLOT_NORMAL, v_uv, vec4(u_normal_const, 0.0)).xyz;
     if (ts != vec3(0.0, 0.0, 1.0)) n = perturb_normal(n, ts);
+#ifdef HAS_CLEARCOAT
+    float coat = clamp(input_value(SLOT_CLEARCOAT, vec4(u_clearcoat)).x, 0.0, 1.0);
+    float coat_rough = input_value(SLOT_CLEARCOAT_ROUGHNESS, vec4(u_clearcoat_roughness)).x;
+    o_coat = vec2(coat, clamp(coat_rough, 0.0, 1.0));
+#endif
+#elif defined(HAS_CLEARCOAT)
+    o_coat = vec2(0.0, 1.0);  // the constant program: batches without a coat
 #endif
     base = clamp(base, 0.0, 1.0);
     float metal = u_specular_workflow > 0.5 ? 0.0 : clamp(metal_in, 0.0, 1.0);

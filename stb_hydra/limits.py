@@ -521,9 +521,10 @@ UDIM_FIRST_TILE = 1001
 #: Anisotropic filtering of material textures (samples; GL clamps to what it has).
 TEXTURE_ANISOTROPY = 16.0
 #: Texture slots of one material (diffuseColor, emissiveColor, specularColor, metallic,
-#: roughness, opacity, normal, occlusion): one sampler each, under the 16 texture
-#: units a fragment shader is guaranteed (GL 4.3), beside the G-buffer pass's none.
-MATERIAL_TEXTURE_SLOTS = 8
+#: roughness, opacity, normal, occlusion, clearcoat, clearcoatRoughness): one sampler
+#: each, under the 16 texture units a fragment shader is guaranteed (GL 4.3), beside
+#: the G-buffer pass's none.
+MATERIAL_TEXTURE_SLOTS = 10
 #: Bytes per file read for a texture (a corrupt header claiming more is refused).
 TEXTURE_MAX_FILE_BYTES = 1024 * 1024 * 1024
 # --- Light and shadow linking (scene/links.py, issue 30) --------------------------------

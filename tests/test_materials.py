@@ -684,3 +684,83 @@ def test_texture_budget_downscales_with_one_warning(tmp_path, gl_ctx):
         assert np.median(np.abs(got - exp)[interior(s, tt, 4)]) <= 0.01
     finally:
         eng.release()
+
+
+# --- clearcoat ----------------------------------------------------------------------------
+
+
+def _ggx_coat(theta_deg: float, rough: float) -> float:
+    """The coat lobe (GGX, Smith height-correlated, Schlick F0 = 0.04) x NoL for a view
+    along the normal and a light at ``theta_deg`` from it, written out here."""
+    t = math.radians(theta_deg)
+    nol, nov = math.cos(t), 1.0
+    noh = voh = math.cos(t / 2)
+    a = max(max(rough, 0.02) ** 2, 1e-3)
+    a2 = a * a
+    d = a2 / (math.pi * (noh * noh * (a2 - 1) + 1) ** 2)
+    gv = nol * math.sqrt(nov * nov * (1 - a2) + a2)
+    gl = nov * math.sqrt(nol * nol * (1 - a2) + a2)
+    vis = 0.5 / (gv + gl)
+    f = 0.04 + 0.96 * (1 - voh) ** 5
+    return d * vis * f * nol, f
+
+
+def _coat_scene(tmp_path, coat_inputs: str, base_rho: float, tilt: float, tex=None, nodes=""):
+    inputs = LAMBERT.format(rho=base_rho) + coat_inputs
+    light = (
+        'def DistantLight "Sun"\n{\n    float inputs:intensity = 2\n'
+        "    float inputs:angle = 0.01\n    bool inputs:normalize = 1\n"
+        "    bool inputs:shadow:enable = 0\n"
+        f"    float xformOp:rotateY = {tilt:g}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:rotateY"]\n}\n'
+    )
+    body = ortho_camera() + quad("Q", "M") + preview_material("M", inputs, tex, nodes) + light
+    return write_stage(tmp_path, body, f"coat_{base_rho}_{tilt:g}.usda")
+
+
+@pytest.mark.parametrize("lighting", ["reference", "stb"])
+def test_clearcoat_lobe_closed_form(tmp_path, gl_ctx, lighting):
+    """A black base under a clearcoat (weight 1, roughness 0.3): radiance = E x the GGX
+    coat lobe; a grey Lambert base under a weight-0.5 coat: E (rho / pi (1 - Fc) cos +
+    0.5 x lobe), Fc = 0.5 x Schlick(VoH)."""
+    tilt = 20.0
+    lobe, f = _ggx_coat(tilt, 0.3)
+    coat = "        float inputs:clearcoat = {w}\n        float inputs:clearcoatRoughness = 0.3\n"
+    out, _ = render_aovs(_coat_scene(tmp_path, coat.format(w=1), 0.0, tilt), (), lighting)
+    got = np.median(out["color"][8:-8, 8:-8, 0])
+    assert got == pytest.approx(2.0 * lobe, rel=0.03)
+    out, _ = render_aovs(_coat_scene(tmp_path, coat.format(w=0.5), 0.5, tilt), (), lighting)
+    got = np.median(out["color"][8:-8, 8:-8, 0])
+    exp = 2.0 * (0.5 / math.pi * (1 - 0.5 * f) * math.cos(math.radians(tilt)) + 0.5 * lobe)
+    assert got == pytest.approx(exp, rel=0.03)
+
+
+def test_textured_clearcoat_and_no_coat_target_without_one(tmp_path, gl_ctx):
+    """A clearcoat texture (left half 1, right half 0) coats the left half only; a scene
+    without a coated material has no g_coat target."""
+    img = np.zeros((8, 8, 1), np.uint8)
+    img[:, :4] = 255
+    write_image(tmp_path / "coat.png", img)
+    nodes = uv_texture("C", "./coat.png", color_space="raw") + primvar_reader()
+    path = _coat_scene(
+        tmp_path,
+        "        float inputs:clearcoatRoughness = 0.3\n",
+        0.0,
+        20.0,
+        {"float inputs:clearcoat": "C.outputs:r"},
+        nodes,
+    )
+    out, _ = render_aovs(path, (), "reference")
+    lobe, _f = _ggx_coat(20.0, 0.3)
+    col = out["color"][..., 0]
+    s, _t = expected_st(W, H)
+    assert np.median(col[(s < 0.4) & (s > 0.1)]) == pytest.approx(2.0 * lobe, rel=0.03)
+    assert np.median(col[s > 0.6]) < 1e-4
+    stage = Usd.Stage.Open(str(_coat_scene(tmp_path, "", 0.5, 20.0)))
+    eng = Engine(stage, RenderSettings(width=16, height=16, lighting="reference"))
+    try:
+        eng.render(None)
+        assert "g_coat" not in eng.buffers.textures
+        assert not eng.delegate.has_clearcoat
+    finally:
+        eng.release()

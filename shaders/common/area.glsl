@@ -189,6 +189,42 @@ vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
     return (s.f0 * (nf.x - nf.y) + nf.y) * I;
 }
 
+#ifdef HAS_CLEARCOAT
+// light_reflect for a clearcoated surface: the base as there, attenuated by the coat's
+// Fresnel (per VoH for the point model; at NoV, a directional average, for the area
+// integral), plus the coat lobe, point model and LTC blended by its own weight wc.
+bool area_reflect_coated(Light L, Surface s, vec3 Ldir, float dist, float f, float ws,
+                         float wc, out vec3 diff, out vec3 spec) {
+    diff = vec3(0.0); spec = vec3(0.0);
+    vec3 dsp, ssp;
+    float csp, fc;
+    brdf_eval_layers(s, Ldir, dsp, ssp, csp, fc);
+    vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    float NoV = max(dot(s.N, s.V), 1e-4);
+    float fcv = s.coat * fresnel_schlick(NoV, vec3(COAT_F0)).x;
+    vec3 v[AREA_MAXV];
+    int n = area_polygon(L, s.P, v);
+    bool area = light_is_area(L, dist);
+    if (area && n == 0) return false;
+    vec3 Lrad = L.intensity.rgb * L.area.w * range_window(dist, L.pos_range.w)
+              * light_tint_rgb(L, -Ldir);
+    vec3 base_d = area ? s.diffuse * Lrad * polygon_form_factor(v, n, s.N) : dsp * E;
+    vec3 base_s = ssp * E * (1.0 - ws);
+    if (ws > 0.0 && n > 0) base_s += ltc_specular(s, v, n) * Lrad * ws;
+    vec3 coat = vec3(csp) * E * (1.0 - wc);
+    if (wc > 0.0 && n > 0) {
+        Surface c = s;
+        c.alpha = s.coat_alpha;
+        c.f0 = vec3(COAT_F0);
+        coat += ltc_specular(c, v, n) * Lrad * s.coat * wc;
+    }
+    float att = area ? 1.0 - fcv : 1.0 - fc;
+    diff = base_d * att;
+    spec = base_s * att + coat;
+    return true;
+}
+#endif
+
 // Unshadowed radiance reflected towards s.V by light L, diffuse and specular parts
 // (nits, before the light's diffuse/specular multipliers), WITHOUT the scalar shape
 // (cone x normalised IES) -- the caller multiplies by light_shape_scalar(L, -Ldir).
@@ -203,6 +239,13 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     // Specular LTC weight (0 when the light has no specular: nothing to integrate).
     float ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
     vec3 dsp, ssp;
+#ifdef HAS_CLEARCOAT
+    // The coat lobe has its own width: its own point/LTC weight.
+    if (s.coat > 0.0) {
+        float wc = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.coat_alpha) : 0.0;
+        return area_reflect_coated(L, s, Ldir, dist, f, ws, wc, diff, spec);
+    }
+#endif
     brdf_eval(s, Ldir, dsp, ssp);
     if (!light_is_area(L, dist) && ws <= 0.0) {
         vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;

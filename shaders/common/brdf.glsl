@@ -12,7 +12,12 @@ struct Surface {
     float alpha;   // GGX alpha = roughness^2 (clamped)
     float roughness;
     float occlusion;  // ambient occlusion of the dome term (material occlusion input)
+    float coat;       // clearcoat weight (UsdPreviewSurface clearcoat; 0: none)
+    float coat_alpha; // its GGX alpha = clearcoatRoughness^2 (clamped)
 };
+
+//: Clearcoat layer: UsdPreviewSurface's second, white specular lobe, IOR 1.5.
+const float COAT_F0 = 0.04;
 
 float ggx_d(float NoH, float a) {
     float a2 = a * a;
@@ -30,10 +35,13 @@ vec3 fresnel_schlick(float VoH, vec3 f0) {
     return f0 + (1.0 - f0) * f;
 }
 
-// Reflected radiance factor for light arriving from unit direction L:
-// returns (diffuse_brdf * kd, specular_brdf * ks) already multiplied by NoL,
-// so radiance = (d + s) * E_perp with E_perp the illuminance facing the light.
-void brdf_eval(Surface s, vec3 L, out vec3 diff, out vec3 spec) {
+// The layers of the BRDF towards unit direction L, each times NoL: the base's
+// diffuse and specular lobes (not attenuated by the coat), the clearcoat lobe
+// (weight included) and the fraction fc of light the coat reflects (Schlick at VoH
+// times the weight): the base sees (1 - fc) of it.
+void brdf_eval_layers(Surface s, vec3 L, out vec3 diff, out vec3 spec, out float coat,
+                      out float fc) {
+    coat = 0.0; fc = 0.0;
     float NoL = dot(s.N, L);
     if (NoL <= 0.0) { diff = vec3(0.0); spec = vec3(0.0); return; }
     vec3 H = normalize(s.V + L);
@@ -43,6 +51,26 @@ void brdf_eval(Surface s, vec3 L, out vec3 diff, out vec3 spec) {
     diff = s.diffuse * (NoL / PI);
     spec = ggx_d(NoH, s.alpha) * smith_ggx_correlated_v(NoV, NoL, s.alpha)
          * fresnel_schlick(VoH, s.f0) * NoL;
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) {
+        fc = s.coat * fresnel_schlick(VoH, vec3(COAT_F0)).x;
+        coat = ggx_d(NoH, s.coat_alpha) * smith_ggx_correlated_v(NoV, NoL, s.coat_alpha)
+             * fc * NoL;
+    }
+#endif
+}
+
+// Reflected radiance factor for light arriving from unit direction L:
+// returns (diffuse_brdf * kd, specular_brdf * ks) already multiplied by NoL,
+// so radiance = (d + s) * E_perp with E_perp the illuminance facing the light.
+// With a clearcoat the base is attenuated by (1 - fc) and the coat lobe is in spec.
+void brdf_eval(Surface s, vec3 L, out vec3 diff, out vec3 spec) {
+    float coat, fc;
+    brdf_eval_layers(s, L, diff, spec, coat, fc);
+#ifdef HAS_CLEARCOAT
+    diff *= 1.0 - fc;
+    spec = spec * (1.0 - fc) + vec3(coat);
+#endif
 }
 
 // Directional albedo of the specular lobe under uniform lighting (Karis 2014,
@@ -54,6 +82,19 @@ vec3 env_brdf_approx(vec3 f0, float roughness, float NoV) {
     float a004 = min(r.x * r.x, exp2(-9.28 * NoV)) * r.x + r.y;
     vec2 ab = vec2(-1.04, 1.04) * a004 + r.zw;
     return f0 * ab.x + ab.y;
+}
+
+// Directional albedo of the whole surface (diffuse + specular + coat) under uniform
+// lighting of unit radiance, for the dome: the base attenuated by the coat's Fresnel.
+vec3 env_albedo(Surface s, float NoV) {
+    vec3 a = s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV);
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) {
+        float fc = s.coat * fresnel_schlick(NoV, vec3(COAT_F0)).x;
+        a = a * (1.0 - fc) + s.coat * env_brdf_approx(vec3(COAT_F0), sqrt(s.coat_alpha), NoV);
+    }
+#endif
+    return a;
 }
 
 // Luminance (Rec.709).

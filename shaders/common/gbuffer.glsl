@@ -10,6 +10,9 @@ uniform sampler2D g_normal;     // rg16f octahedral world normal
 uniform sampler2D g_base_rough; // rgba16f base colour, roughness
 uniform sampler2D g_f0_metal;   // rgba16f F0, metallic
 uniform sampler2D g_emission;   // rgba16f rgb emitted radiance (nits), a occlusion
+#ifdef HAS_CLEARCOAT
+uniform sampler2D g_coat;       // rg16f clearcoat weight, clearcoat roughness
+#endif
 
 // Position and normal only (2 fetches): false for background pixels.
 bool read_geometry(ivec2 px, out vec3 P, out vec3 N) {
@@ -38,6 +41,15 @@ bool read_surface(ivec2 px, out Surface s) {
     s.occlusion = texelFetch(g_emission, px, 0).a;  // passes with a dome bind g_emission
 #else
     s.occlusion = 1.0;
+#endif
+#ifdef HAS_CLEARCOAT
+    vec2 coat = texelFetch(g_coat, px, 0).rg;
+    s.coat = clamp(coat.r, 0.0, 1.0);
+    float cr = clamp(coat.g, 0.02, 1.0);
+    s.coat_alpha = max(cr * cr, LIM_GGX_ALPHA_MIN);
+#else
+    s.coat = 0.0;
+    s.coat_alpha = 1.0;
 #endif
     return true;
 }

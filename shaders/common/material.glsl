@@ -1,6 +1,7 @@
 // Material texture lookups of a draw batch (renderer/material_binding.py binds them).
 // Slots (LIM_MATERIAL_TEXTURE_SLOTS): 0 diffuseColor, 1 emissiveColor, 2 specularColor,
-// 3 metallic, 4 roughness, 5 opacity, 6 normal, 7 occlusion. A slot's value at st is
+// 3 metallic, 4 roughness, 5 opacity, 6 normal, 7 occlusion, 8 clearcoat,
+// 9 clearcoatRoughness. A slot's value at st is
 //   u_mat_value[i] * texel + u_mat_bias[i]
 // with texel sampled (trilinear, anisotropic, the slot's wrap modes as a sampler
 // object) at (u_mat_st rows) * (s, t, 1); UDIM slots (u_mat_udim.x = first tile) pick
@@ -16,6 +17,8 @@ const int SLOT_ROUGHNESS = 4;
 const int SLOT_OPACITY = 5;
 const int SLOT_NORMAL = 6;
 const int SLOT_OCCLUSION = 7;
+const int SLOT_CLEARCOAT = 8;
+const int SLOT_CLEARCOAT_ROUGHNESS = 9;
 
 uniform sampler2DArray u_mat_tex[LIM_MATERIAL_TEXTURE_SLOTS];
 uniform int u_mat_on;                                   // bit i: slot i is textured

@@ -60,10 +60,9 @@ vec3 sun_and_ambient(Surface s) {
 #ifdef HAS_AMBIENT
     float NoV = max(dot(s.N, s.V), 1e-4);
 #ifdef HAS_LINKS
-    c += link_ambient[group].rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV))
-         * s.occlusion;
+    c += link_ambient[group].rgb * env_albedo(s, NoV) * s.occlusion;
 #else
-    c += u_ambient.rgb * (s.diffuse + env_brdf_approx(s.f0, s.roughness, NoV)) * s.occlusion;
+    c += u_ambient.rgb * env_albedo(s, NoV) * s.occlusion;
 #endif
 #endif
     return c;

@@ -97,7 +97,7 @@ class Engine:
         self._requested_aovs: set[str] = {"color"}
         self._graph: CompiledGraph | None = None
         #: Light linking when the graph was compiled (it adds the G-buffer's g_link).
-        self._graph_links = False
+        self._graph_features: tuple[bool, bool] = (False, False)
         self._scopes: dict[int, _PassScope] = {}
         self._allocated: tuple[int, int, int] | None = None
         self.method: LightingMethod = self._make_method(
@@ -128,11 +128,16 @@ class Engine:
     def _invalidate_graph(self) -> None:
         self._graph = None
 
+    def _features(self) -> tuple[bool, bool]:
+        """What decides the G-buffer's optional targets: (light links, clearcoat)."""
+        d = self.delegate
+        return (d.light_table.has_light_links(), d.has_clearcoat)
+
     @property
     def graph(self) -> CompiledGraph:
         """The compiled pass graph (built on first use after a change)."""
         if self._graph is None:
-            self._graph_links = self.delegate.light_table.has_light_links()
+            self._graph_features = self._features()
             self._graph = compile_graph(self._set.passes, IMPORTS)
             self._allocated = None
             # Each pass's declared access, resolved once per graph, not per frame.
@@ -286,10 +291,8 @@ class Engine:
             self.render_index.sync_all()
         with timed(self.timings, "commit", None, False):
             self.delegate.commit_resources()
-        if self._graph is not None and (
-            self.delegate.light_table.has_light_links() != self._graph_links
-        ):
-            self._graph = None  # light linking came or went: the G-buffer's targets change
+        if self._graph is not None and self._features() != self._graph_features:
+            self._graph = None  # linking / a clearcoat came or went: G-buffer targets change
         for w in si.warnings + self.delegate.warnings:
             self._warn_once(w)
 

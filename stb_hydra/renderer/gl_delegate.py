@@ -105,6 +105,8 @@ class GLRenderDelegate(RenderDelegate):
         self.last_upload_records = 0
         #: Material textures (OIIO -> OCIO -> GL), shared by every batch.
         self.textures = TextureCache(ctx)
+        #: Some batch's material has a clearcoat lobe (the G-buffer's g_coat exists).
+        self.has_clearcoat = False
         self.ies_texture: moderngl.TextureArray | None = None
         self._ies_version = -1
         self.ies_layer_count = 0
@@ -347,6 +349,7 @@ class GLRenderDelegate(RenderDelegate):
             prev_map[k] = models
         self._batch_prev = prev_map
         self.batches = new
+        self.has_clearcoat = any(b.material.coated for b in new)
         self._commit_textures()
         self.scene_bounds = (lo, hi) if np.all(np.isfinite(lo)) else (np.zeros(3), np.zeros(3))
         self._batches_dirty = False

@@ -14,6 +14,7 @@ Texture slots (``limits.MATERIAL_TEXTURE_SLOTS``), as in ``material.glsl``::
 
     0 diffuseColor  1 emissiveColor  2 specularColor  3 metallic
     4 roughness     5 opacity        6 normal         7 occlusion
+    8 clearcoat     9 clearcoatRoughness
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ SLOT_INPUTS = (
     "opacity",
     "normal",
     "occlusion",
+    "clearcoat",
+    "clearcoatRoughness",
 )
 SLOT_OF = {name: i for i, name in enumerate(SLOT_INPUTS)}
 assert len(SLOT_INPUTS) == limits.MATERIAL_TEXTURE_SLOTS
@@ -45,7 +48,7 @@ assert len(SLOT_INPUTS) == limits.MATERIAL_TEXTURE_SLOTS
 _VECTOR_SLOTS = frozenset({0, 1, 2, 6})
 #: Targets of a float3 / float primvar input (``u_pv3_slot`` / ``u_pv1_slot``).
 _PV3_SLOTS = (0, 1, 2)
-_PV1_SLOTS = (3, 4, 5, 7)
+_PV1_SLOTS = (3, 4, 5, 7, 8, 9)
 _CHANNEL = {"r": 0, "g": 1, "b": 2, "a": 3}
 
 
@@ -72,6 +75,9 @@ class MaterialParams:
     #: Dielectric F0 from ``ior`` (metallic workflow): ((ior - 1) / (ior + 1))^2.
     f0_dielectric: float = 0.04
     occlusion: float = 1.0
+    #: Clearcoat weight and roughness (UsdPreviewSurface; 0: no coat lobe).
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.01
     #: Constant tangent-space normal ((0, 0, 1): none).
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     #: Per slot the texture lookup, or None.
@@ -95,6 +101,8 @@ class MaterialParams:
             self.opacity_threshold,
             self.f0_dielectric,
             self.occlusion,
+            self.clearcoat,
+            self.clearcoat_roughness,
             self.normal,
             self.textures,
             self.pv3_slot,
@@ -112,7 +120,13 @@ class MaterialParams:
             or self.pv1_slot >= 0
             or self.normal != (0.0, 0.0, 1.0)
             or self.cutout
+            or self.coated
         )
+
+    @property
+    def coated(self) -> bool:
+        """Has a clearcoat lobe (the G-buffer's ``g_coat`` target is then needed)."""
+        return self.clearcoat > 0.0 or self.textures[SLOT_OF["clearcoat"]] is not None
 
     @property
     def cutout(self) -> bool:
@@ -167,6 +181,8 @@ def material_params(mat: prims.MaterialPrim | None, mesh: prims.MeshPrim) -> Mat
         opacity_threshold=float(mat.opacity_threshold),
         f0_dielectric=float(f0),
         occlusion=float(mat.occlusion),
+        clearcoat=float(mat.clearcoat),
+        clearcoat_roughness=float(mat.clearcoat_roughness),
         normal=_t3(mat.normal),
         textures=tuple(tex),
         pv3_slot=pv3,
@@ -220,6 +236,8 @@ def bind_material(
     set_uniform(prog, "u_opacity_threshold", params.opacity_threshold)
     set_uniform(prog, "u_f0_dielectric", params.f0_dielectric)
     set_uniform(prog, "u_occlusion", params.occlusion)
+    set_uniform(prog, "u_clearcoat", params.clearcoat)
+    set_uniform(prog, "u_clearcoat_roughness", params.clearcoat_roughness)
     set_uniform(prog, "u_normal_const", params.normal)
     set_uniform(prog, "u_pv3_slot", params.pv3_slot)
     set_uniform(prog, "u_pv1_slot", params.pv1_slot)

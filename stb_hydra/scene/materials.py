@@ -414,10 +414,6 @@ def read_preview_surface(shader: UsdShade.Shader, time: Usd.TimeCode, mp: Materi
             w.append("displacement is not rendered")
     if mp.opacity_threshold <= 0.0 and (mp.opacity < 1.0 or "opacity" in mp.textures):
         w.append("translucent opacity is drawn opaque (cut-outs need opacityThreshold > 0)")
-    if mp.clearcoat > 0.0 or "clearcoat" in mp.textures:
-        mp.notes.append(
-            f"material <{mp.path}>: clearcoat is read but the BRDF has no coat lobe yet"
-        )
     mp.warnings.extend(f"material <{mp.path}>: {m}" for m in dict.fromkeys(w))
 
 

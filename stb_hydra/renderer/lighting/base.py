@@ -54,6 +54,9 @@ GBUFFER_SAMPLERS = tuple(t.name for t in GBUFFER_INPUTS)
 #: The pixel's light-link group (``tasks/gbuffer.LINK_TARGET``): read only by scenes
 #: with light linking.
 LINK_INPUT = Tex("g_link", "r8ui")
+#: Clearcoat weight and roughness (``tasks/gbuffer.COAT_TARGET``): read only by scenes
+#: with a coated material.
+COAT_INPUT = Tex("g_coat", "rg16f")
 
 #: What every lighting method reads.
 READS: tuple[Resource, ...] = (
@@ -115,13 +118,20 @@ class LightingMethod:
     def reads(self) -> tuple[Resource, ...]:
         extra = (Tex(f"hiz{self.hiz_level}", "rg32f"),) if self.hiz_level else ()
         links = (LINK_INPUT,) if self.light_links else ()
-        return (*READS, *extra, *links)
+        coat = (COAT_INPUT,) if self.clearcoat else ()
+        return (*READS, *extra, *links, *coat)
 
     @property
     def light_links(self) -> bool:
         """The scene has light linking (``g_link`` and the link SSBO exist)."""
         d = self.delegate
         return d is not None and d.light_table.has_light_links()
+
+    @property
+    def clearcoat(self) -> bool:
+        """Some material has a clearcoat lobe (``g_coat`` exists)."""
+        d = self.delegate
+        return d is not None and d.has_clearcoat
 
     def debug_passes(self) -> list[Pass]:
         """Passes drawing ``debug_aovs`` (each writes ``debug_<aov>``)."""
@@ -139,6 +149,8 @@ class LightingMethod:
             defines["HAS_AMBIENT"] = True
         if frame.get(LightBuffer).links:
             defines["HAS_LINKS"] = True  # common/links.glsl
+        if self.clearcoat:
+            defines["HAS_CLEARCOAT"] = True  # common/brdf.glsl's coat lobe, g_coat
         lights = frame.get(InViewLights)
         if self.uses_local_lights and lights.count:
             if self.delegate is not None and self.delegate.has_ies and lights.has_ies:
@@ -166,10 +178,11 @@ class LightingMethod:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
         if lb.link_ssbo is not None:
             lb.link_ssbo.bind_to_storage_buffer(SSBO_LIGHT_LINKS)
-        if LINK_INPUT.name in prog:
-            tex[LINK_INPUT.name].use(unit)
-            cast(moderngl.Uniform, prog[LINK_INPUT.name]).value = unit
-            unit += 1
+        for opt in (LINK_INPUT, COAT_INPUT):
+            if opt.name in prog:
+                tex[opt.name].use(unit)
+                cast(moderngl.Uniform, prog[opt.name]).value = unit
+                unit += 1
         if "u_ltc" in prog:  # area lights' GGX specular (common/area.glsl)
             shader_library(frame.ctx).ltc_texture().use(unit)
             cast(moderngl.Uniform, prog["u_ltc"]).value = unit
