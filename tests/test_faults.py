@@ -264,9 +264,10 @@ def test_corrupt_texture_warns_and_falls_back(gl_ctx, tmp_path, testdata, name):
     material and the file, and the texture reader's ``inputs:fallback`` is used
     (UsdUVTexture's rule for an unreadable file): the image equals the same scene with
     that colour authored as a constant (docs/MATERIALS.md)."""
+    from pxr import Usd
+
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
-    from pxr import Usd
 
     src = (
         (testdata / "usd/luxtest/dome_grid_2k.exr").read_bytes()[:5000]
