@@ -50,9 +50,13 @@ def _engine(path: Path, size: tuple[int, int], method: str, strip: bool):
 
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
+    from stb_hydra.scene.usd_diagnostics import UsdDiagnostics, summarize
 
     t0 = time.perf_counter()
-    stage = Usd.Stage.Open(str(path))
+    with UsdDiagnostics() as diag:  # the .mtlx arcs the scene index reads itself
+        stage = Usd.Stage.Open(str(path))
+        for line in summarize(diag.drain()):
+            print("warning:", line, file=sys.stderr)
     eng = Engine(
         stage,
         RenderSettings(width=size[0], height=size[1], lighting=method, profile=True),
