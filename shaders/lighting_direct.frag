@@ -5,6 +5,7 @@
 #ifdef LOCAL_LIGHTS
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
+uniform uint u_point_lights;  // the first u_point_lights lights have no extent
 #endif
 
 #include "common/lighting_out.glsl"
@@ -24,8 +25,17 @@ void main() {
     vec3 c = sun_and_ambient(s);
 #endif
 #ifdef LOCAL_LIGHTS
+    // Point lights first (u_point_lights of them, renderer/light_buffer.points_first):
+    // their loop holds only the point model; the rest take the full light_radiance.
     uint n = u_counts.x;
-    for (uint i = 0u; i < n; ++i) {
+    uint np = min(u_point_lights, n);
+    for (uint i = 0u; i < np; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_point(lights[i], s);
+    }
+    for (uint i = np; i < n; ++i) {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif

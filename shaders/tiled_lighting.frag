@@ -13,6 +13,7 @@ layout(std430, binding = SSBO_CELL_HEADERS) readonly buffer CellHeaders { uvec2 
 layout(std430, binding = SSBO_CELL_LISTS) readonly buffer CellLights { uint cell_lights[]; };
 uniform ivec2 u_grid;      // tiles along x, y
 uniform int u_tile_px;     // tile side (px)
+uniform uint u_point_lights;  // the first u_point_lights lights have no extent
 #ifdef CLUSTERED
 uniform vec4 u_slices;     // near_split, far, slices, slices / ln(far / near_split)
 
@@ -45,7 +46,20 @@ void main() {
     cell += depth_slice(texelFetch(g_depth, px, 0).r) * u_grid.x * u_grid.y;
 #endif
     uvec2 h = cell_header[cell];
-    for (uint k = 0u; k < h.y; ++k) {
+    // A cell's list is in ascending light order (tiled_cull.comp), and the point
+    // lights come first (u_point_lights, renderer/light_buffer.points_first): the
+    // list's point part runs a loop holding only the point model.
+    uint k = 0u;
+    for (; k < h.y; ++k) {
+        uint i = cell_lights[h.x + k];
+        if (i >= u_point_lights) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        c += light_radiance_point(lights[i], s);
+    }
+    for (; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;

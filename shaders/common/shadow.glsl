@@ -417,4 +417,38 @@ vec3 light_radiance(Light L, Surface s) {
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
     return c * local_shadow(L, s.P, s.N);
 }
+
+// light_radiance for a light without extent (light_half_extent(L) == 0: never an area,
+// no specular LTC weight), with only the point model's code: the same operations as
+// light_reflect's point path, so the same value. The exact methods loop over their
+// point lights with this (u_point_lights): where both sides of a branch execute
+// (llvmpipe's SIMD lanes), a loop carrying the polygon and LTC code pays for it on
+// every light.
+vec3 light_radiance_point(Light L, Surface s) {
+    vec3 Ldir;
+    float dist;
+    float f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return vec3(0.0);
+    vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    vec3 d, sp;
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) {  // area_reflect_coated's point path (ws = wc = 0)
+        vec3 dsp, ssp;
+        float csp, fc;
+        brdf_eval_layers(s, Ldir, dsp, ssp, csp, fc);
+        float att = 1.0 - fc;
+        d = dsp * E * att;
+        sp = ssp * E * (1.0 - 0.0) * att + vec3(csp) * E * (1.0 - 0.0);
+    } else
+#endif
+    {
+        vec3 dsp, ssp;
+        brdf_eval(s, Ldir, dsp, ssp);
+        d = dsp * E;
+        sp = ssp * E;
+    }
+    vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
+    if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
+    return c * local_shadow(L, s.P, s.N);
+}
 #endif

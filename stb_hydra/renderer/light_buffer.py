@@ -41,6 +41,37 @@ def cull_lights(table: LightTable, planes: np.ndarray) -> np.ndarray:
     return out
 
 
+def half_extent(table: LightTable, rows: np.ndarray) -> np.ndarray:
+    """The lights' half extents (m) as ``light_half_extent`` in common/area.glsl computes
+    them: 0 for point lights, the half diagonal of a rect, the larger of a cylinder's
+    radius and half length, the radius of a disk or sphere."""
+    kind = table.area_kind[rows]
+    size = table.area_size[rows].astype(np.float32)
+    ext = size[:, 0].copy()
+    rect = kind == sc.AREA_RECT
+    ext[rect] = np.hypot(size[rect, 0], size[rect, 1])
+    cyl = kind == sc.AREA_CYLINDER
+    ext[cyl] = np.maximum(size[cyl, 0], size[cyl, 1])
+    ext[kind == sc.AREA_POINT] = 0.0
+    return ext
+
+
+def points_first(table: LightTable, rows: np.ndarray) -> tuple[np.ndarray, int]:
+    """``rows`` stably partitioned: lights without extent (never lit as an area: no
+    polygon, no LTC) first, then the rest, each part in its given order; and the
+    number of the first part. The exact methods run the first part through a loop
+    that holds only the point model (``light_radiance_point``): on SIMD hardware that
+    executes both sides of a branch, a loop body carrying the area code costs it for
+    every light (issue 34)."""
+    if len(rows) == 0:
+        return rows, 0
+    point = half_extent(table, rows) <= 0.0
+    n = int(np.count_nonzero(point))
+    if n == 0 or n == len(rows):
+        return rows, n
+    return np.concatenate([rows[point], rows[~point]]), n
+
+
 def pack_lights(
     table: LightTable, rows: np.ndarray, shadow_maps: np.ndarray | None = None
 ) -> np.ndarray:

@@ -90,7 +90,7 @@ def build_passes(
     lightmap = lightmap or LightmapTask(delegate)
     passes: list[Pass] = [
         DistantLightsTask(delegate),
-        LightCullTask(delegate),
+        LightCullTask(delegate, points_first=method.points_first),
         SunShadowTask(delegate),
         atlas,
         LightUploadTask(delegate),

@@ -36,11 +36,14 @@ class InViewLights:
     """Lights whose influence sphere meets the view frustum, in light-buffer order.
 
     ``rows``: light-table rows (SSBO index i = rows[i]); the feature flags say
-    whether any of them has a cone / an IES profile (shader variants)."""
+    whether any of them has a cone / an IES profile (shader variants);
+    ``point_count``: the first ``point_count`` lights have no extent (the exact
+    methods' point-only loop, ``u_point_lights``), 0 when the order is not split."""
 
     rows: np.ndarray
     has_cones: bool = False
     has_ies: bool = False
+    point_count: int = 0
 
     @property
     def count(self) -> int:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from .bare_loop import BareLoopLighting
 from .base import LightingMethod
 from .clustered import ClusteredLighting
 from .light_tree import LightTreeLighting
@@ -21,6 +22,7 @@ METHODS: dict[str, type[LightingMethod]] = {
     "tiled": TiledLighting,
     "clustered": ClusteredLighting,
     "lighttree": LightTreeLighting,
+    "bare": BareLoopLighting,
 }
 
 

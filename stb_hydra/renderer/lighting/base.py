@@ -89,6 +89,9 @@ class LightingMethod:
     hiz_level: int = 0
     #: The lighting pass also writes ``TAA_INPUTS`` (set by the lighting task).
     taa_inputs: bool = False
+    #: The method's light loop has a point-only part: in-view lights are ordered point
+    #: lights first and ``u_point_lights`` says how many (``InViewLights.point_count``).
+    points_first: ClassVar[bool] = False
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -173,6 +176,8 @@ class LightingMethod:
                 tex[name].use(unit)
                 cast(moderngl.Uniform, prog[name]).value = unit
                 unit += 1
+        if "u_point_lights" in prog:
+            set_uniform(prog, "u_point_lights", frame.get(InViewLights).point_count)
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)

@@ -134,6 +134,7 @@ def grid_uniforms(prog: moderngl.Program | moderngl.ComputeShader, grid: Cluster
 
 class ClusteredLighting(LightingMethod):
     name = "clustered"
+    points_first = True
     options = OPTIONS
 
     @classmethod

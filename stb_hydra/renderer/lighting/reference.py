@@ -15,6 +15,7 @@ if TYPE_CHECKING:
 
 class ReferenceLighting(LightingMethod):
     name = "reference"
+    points_first = True
 
     def execute(self, frame: FrameContext) -> None:
         defines = self.scene_defines(frame)

@@ -138,6 +138,7 @@ def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
 
 class TiledLighting(LightingMethod):
     name = "tiled"
+    points_first = True
     options = OPTIONS
     hiz_level = int(math.log2(limits.TILED_TILE_PX))
 
