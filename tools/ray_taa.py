@@ -47,7 +47,7 @@ def moving_scene(frames: int, lights: int = 64) -> str:
     side = math.ceil(math.sqrt(lights))
     out = [
         "#usda 1.0",
-        f"(\n    metersPerUnit = 1\n    upAxis = \"Y\"\n    startTimeCode = 1\n"
+        f'(\n    metersPerUnit = 1\n    upAxis = "Y"\n    startTimeCode = 1\n'
         f"    endTimeCode = {frames}\n)",
         'def Camera "Cam"\n{\n    float focalLength = 18\n    float horizontalAperture = 36\n'
         "    float verticalAperture = 20.25\n"
@@ -131,8 +131,10 @@ def main(argv: list[str] | None = None) -> int:
             st = d / "stats.json"
             t0 = time.perf_counter()
             rc = stb(
-                ["render", str(scene), str(d / "f.####.exr"), *flags, "--ray", "--stats", str(st)]
-                + ["--workers", str(a.workers)]
+                [
+                    *("render", str(scene), str(d / "f.####.exr"), *flags, "--ray"),
+                    *("--stats", str(st), "--workers", str(a.workers)),
+                ]
             )
             t_ray = time.perf_counter() - t0
             assert rc == 0, rc
