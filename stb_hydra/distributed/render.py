@@ -37,6 +37,18 @@ from .cluster import cluster_resources, connected
 
 #: Attempts per frame when its workers die (the first one included).
 MAX_ATTEMPTS = 3
+#: taa on Ray: unwritten frames a run renders before its first written one. The
+#: history never forgets within ``tasks.temporal.MAX_HISTORY`` frames and then decays
+#: by 1/64 a frame (still pixels), so a finite warm-up stays far from the local
+#: frames (measured, tools/ray_taa.py, 64x36 moving scene, frame 200: HDR-FLIP
+#: W=16 0.26, 32 0.20, 64 0.14, 96 0.065, 128 0.041, 160 0.025; frame 24: W=8 0.28,
+#: 16 0.16): runs warm up from --frames' first frame (exact, byte-identical; the
+#: planner then keeps a sequence in one run). Lower it for speed at that cost.
+TAA_WARMUP_FRAMES = 1_000_000
+#: taa on Ray: the most frames (warm-up included) one run costs when a sequence is
+#: split into more runs than workers (long sequences: runs are then handed out as
+#: workers come free, and a lost worker loses at most this much work).
+TAA_RUN_MAX_COST = 16 * TAA_WARMUP_FRAMES
 #: Test hook: called as ``hook(pool, worker, index)`` right after a frame is dispatched.
 on_dispatch: Callable[[Any, Any, int], None] | None = None
 #: Test hook: ``{"index": i, "marker": path}``: the first worker to render frame ``i``
@@ -87,6 +99,8 @@ class RenderWorker:
         self.pipeline = r._color_pipeline(args)
         self.settings = r._render_settings(args)
         self.first = job["first"]
+        #: ``--frames`` (the local render's sequence): taa warm-ups render from it.
+        self.frames: list[float | None] = list(job.get("frames") or [self.first])
         self.ext = os.path.splitext(args.output)[1].lower()
         self._build()
         r._check_image_size(self.eng)
@@ -103,9 +117,14 @@ class RenderWorker:
             self.eng.release()
             self.eng = None
         self.eng = r._build_engine(self.stage, self.settings, self.pipeline, self.first)
+        # --temporal auto decides as the local render does (taa when the camera moves).
+        r._resolve_temporal(self.args, self.stage, self.eng, self.frames, self.rep)
         want = set(self.aovs) | ({"display"} if self.ext in (".png", ".jpg", ".jpeg") else set())
         self.eng.request_aovs(want)
         self.started = False
+        #: taa: the position in ``--frames`` whose frame the engine's history expects
+        #: next (-1: none, the engine is fresh or its state unknown).
+        self.pos = -1
 
     def _new_warnings(self) -> list[str]:
         lines = self.rep.lines[self.sent :] if self.eng is not None else []
@@ -117,31 +136,38 @@ class RenderWorker:
         out: dict[str, Any] = {"host": self.host, "pid": os.getpid(), "error": self.error}
         if self.error is None:
             out["header"] = self.stats
+            out["temporal"] = self.eng.settings.temporal
             out["warnings"] = self._new_warnings()
         return out
 
-    def render(self, index: int, fr: float | None, out: str) -> dict[str, Any]:
+    def render(
+        self, index: int, fr: float | None, out: str, warm_from: int | None = None
+    ) -> dict[str, Any]:
         """Render frame ``fr`` (position ``index`` of ``--frames``) to ``out``: its
-        stats record, or ``{"error": ...}`` for a reason of the scene."""
+        stats record, or ``{"error": ...}`` for a reason of the scene.
+
+        ``warm_from`` (taa, a run of frames): unless the engine's history is already
+        at ``index`` (the previous call rendered ``index - 1``), the engine is rebuilt
+        and renders positions ``warm_from .. index - 1`` first, unwritten (after
+        ``--frames``' first frame when ``warm_from`` > 0, for the shadow atlas, with
+        the history dropped after it)."""
         from ..apps import render as r
         from ..io.images import ImageWriteError
         from ..renderer.engine import RenderError
 
         t_start = _time.perf_counter()
+        warmed = 0
         try:
-            if self.started and index * self.samples < self.eng.frame_index:
-                self._build()  # an earlier frame (a retry): frame counters only increase
+            if self.eng.settings.temporal == "taa":
+                warmed = self._position(index, index if warm_from is None else warm_from)
+            else:
+                self._position_still(index)
             eng, rep = self.eng, self.rep
-            if not self.started and index != 0:
-                # The engine keeps state between frames (shadow atlas and scheduler): a
-                # local render starts at --frames' first frame, and so does this one
-                # (rendered once, not written) before its first frame elsewhere.
-                eng.frame_index = 0
-                eng.render(self.first)
-            self.started = True
             eng.frame_index = index * self.samples  # the seeds of a local render
             t0 = _time.perf_counter()
+            self.pos = -1
             frame = eng.render(fr)
+            self.pos = index + 1
             wall = (_time.perf_counter() - t0) * 1e3
             _maybe_exit(self.exit_mid_frame, index)
             rep.warn_all(eng.warnings)
@@ -157,12 +183,110 @@ class RenderWorker:
             "record": record,
             "warnings": self._new_warnings(),
             "busy_ms": (_time.perf_counter() - t_start) * 1e3,
+            "warmup_frames": warmed,
         }
+
+    def _position_still(self, index: int) -> None:
+        """Frames without taa: the shadow atlas as the local render has it."""
+        if self.started and index * self.samples < self.eng.frame_index:
+            self._build()  # an earlier frame (a retry): frame counters only increase
+        if not self.started and index != 0:
+            # The engine keeps state between frames (shadow atlas and scheduler): a
+            # local render starts at --frames' first frame, and so does this one
+            # (rendered once, not written) before its first frame elsewhere.
+            self.eng.frame_index = 0
+            self.eng.render(self.first)
+        self.started = True
+
+    def _position(self, index: int, warm_from: int) -> int:
+        """taa: the engine's history and shadow atlas at ``index`` as a local render
+        has them, approximately (exactly when ``warm_from`` is 0): the unwritten
+        warm-up frames ``warm_from .. index - 1`` (each with its local seed and
+        jitter). Returns the number of frames rendered for it."""
+        if self.pos == index:
+            return 0  # the previous call rendered index - 1: the history is there
+        if self.started or self.pos != -1 or self.eng.frame_index:
+            self._build()
+        self.started = True
+        eng, n = self.eng, 0
+        warm_from = max(0, min(warm_from, index))
+        if warm_from > 0:
+            # --frames' first frame places the shadow maps as the local render's did;
+            # its history is then dropped (the warm-up starts from nothing).
+            eng.frame_index = 0
+            eng.render(self.first)
+            n += 1
+            temporal = eng.temporal
+            assert temporal is not None  # settings.temporal == "taa"
+            temporal.reset()
+        for j in range(warm_from, index):
+            eng.frame_index = j * self.samples
+            eng.render(self.frames[j])
+            n += 1
+        return n
 
     def close(self) -> None:
         if self.eng is not None:
             self.eng.release()
             self.eng = None
+
+
+@dataclass
+class _Run:
+    """Frames (positions in ``--frames``, contiguous) one worker renders in order;
+    ``warm_from`` None: independent frames (no taa), else where its warm-up starts."""
+
+    frames: deque[int]
+    warm_from: int | None = None
+
+
+def plan_runs(
+    todo: list[int], workers: int, warmup: int, max_cost: int
+) -> list[tuple[int, list[int]]]:
+    """taa: ``todo`` (ascending positions in ``--frames``) split into contiguous runs
+    ``(warm_from, positions)``, ``warm_from = max(0, first - warmup)``. A run's cost
+    is its frames plus its warm-up (and ``--frames``' first frame when the warm-up
+    does not start there); runs are as even in cost as can be, as few as ``workers``
+    when each then costs at most ``max_cost`` frames, else as many as that cap needs
+    (handed out as workers come free)."""
+    if not todo:
+        return []
+    blocks: list[list[int]] = [[todo[0]]]
+    for i in todo[1:]:
+        if i == blocks[-1][-1] + 1:
+            blocks[-1].append(i)
+        else:
+            blocks.append([i])
+
+    def warm_cost(first: int) -> int:
+        w = first - max(0, first - warmup)
+        return w + (1 if first - warmup > 0 else 0)
+
+    def split(cost: int) -> list[tuple[int, list[int]]] | None:
+        runs: list[tuple[int, list[int]]] = []
+        for block in blocks:
+            k = 0
+            while k < len(block):
+                take = cost - warm_cost(block[k])
+                if take < 1:
+                    return None
+                piece = block[k : k + take]
+                runs.append((max(0, piece[0] - warmup), piece))
+                k += take
+        return runs
+
+    lo, hi = 1, len(todo) + warmup + 1  # hi: every block in one run
+    while lo < hi:  # the smallest cost that needs at most `workers` runs
+        mid = (lo + hi) // 2
+        runs = split(mid)
+        if runs is not None and len(runs) <= max(1, workers):
+            hi = mid
+        else:
+            lo = mid + 1
+    cost = min(lo, max(max_cost, warmup + 2))
+    out = split(cost)
+    assert out is not None  # cost > warm_cost of any first frame
+    return out
 
 
 @dataclass
@@ -175,6 +299,7 @@ class _Slot:
     ready: bool = False
     alive: bool = True
     index: int = -1  # the frame it renders, -1 when idle
+    run: _Run | None = None  # the rest of its run (taa)
     sent_at: float = 0.0
     frames: int = 0
 
@@ -189,6 +314,14 @@ class RunResult:
     hosts: set[str] = field(default_factory=set)
     overhead_ms: list[float] = field(default_factory=list)
     setup_errors: list[str] = field(default_factory=list)
+    #: The workers' temporal mode (``--temporal auto`` resolved), None before any.
+    temporal: str | None = None
+    #: taa: the runs ``(warm_from, first, last)`` as planned (frames, not positions),
+    #: whether every one warms up from --frames' first frame (the local render's
+    #: history exactly), and the warm-up frames rendered (retries included).
+    runs: list[tuple[float | None, float | None, float | None]] = field(default_factory=list)
+    exact: bool = False
+    warmup_frames: int = 0
 
 
 class _Pool:
@@ -210,7 +343,12 @@ class _Pool:
         self.job = job
         self.frames = frames
         self.outputs = outputs
-        self.queue: deque[int] = deque(todo)
+        self.todo = list(todo)
+        #: Runs not started: single frames until the workers' temporal mode is known
+        #: (:meth:`_plan`).
+        self.queue: deque[_Run] = deque(_Run(deque([i])) for i in todo)
+        self.n_workers = n_workers
+        self.planned = False
         self.attempts: dict[int, int] = {}
         self.rep = rep
         self.tick = tick
@@ -232,11 +370,16 @@ class _Pool:
         self.refs[slot.actor.ready.remote()] = ("ready", slot)
 
     def _dispatch(self, slot: _Slot) -> None:
-        if not self.queue or not slot.alive or not slot.ready or slot.index >= 0:
+        """The next frame of ``slot``'s run, or of the next run queued."""
+        if not slot.alive or not slot.ready or slot.index >= 0:
             return
-        i = self.queue.popleft()
+        if slot.run is None or not slot.run.frames:
+            slot.run = self.queue.popleft() if self.queue else None
+        if slot.run is None:
+            return
+        i = slot.run.frames.popleft()
         slot.index, slot.sent_at = i, _time.perf_counter()
-        ref = slot.actor.render.remote(i, self.frames[i], self.outputs[i])
+        ref = slot.actor.render.remote(i, self.frames[i], self.outputs[i], slot.run.warm_from)
         self.refs[ref] = ("frame", slot)
         if on_dispatch is not None:
             on_dispatch(self, slot, i)
@@ -263,8 +406,9 @@ class _Pool:
             else:
                 self._frame(slot, msg)
             self._dispatch(slot)
-        for i in self.queue:  # no worker left to render them
-            self.res.failed.setdefault(i, "no worker left to render it")
+        for run in self.queue:  # no worker left to render them
+            for i in run.frames:
+                self.res.failed.setdefault(i, "no worker left to render it")
         return self.res
 
     def _ready(self, slot: _Slot, msg: dict) -> None:
@@ -280,6 +424,32 @@ class _Pool:
         if self.res.header is None:
             self.res.header = msg["header"]
         self.rep.warn_all(msg.get("warnings", ()))
+        if not self.planned:
+            self._plan(str(msg.get("temporal") or ""))
+
+    def _plan(self, temporal: str) -> None:
+        """The first worker set up: its temporal mode decides the queue. taa (the
+        history is the previous frames): contiguous runs with warm-ups
+        (:func:`plan_runs`), said in one line before any frame; else single frames."""
+        self.planned = True
+        self.res.temporal = temporal
+        if temporal != "taa":
+            return
+        runs = plan_runs(self.todo, self.n_workers, TAA_WARMUP_FRAMES, TAA_RUN_MAX_COST)
+        self.queue = deque(_Run(deque(p), w) for w, p in runs)
+        fr = self.frames
+        self.res.runs = [(fr[w], fr[p[0]], fr[p[-1]]) for w, p in runs]
+        exact = self.res.exact = all(w == 0 for w, _ in runs)
+        how = (
+            "each warmed up from --frames' first frame: the local render's frames"
+            if exact
+            else f"each warmed up {TAA_WARMUP_FRAMES} frames early, unwritten: the taa "
+            "history approximates the local render's (docs/DISTRIBUTED.md)"
+        )
+        self.rep.say(
+            f"stb render: --temporal taa on Ray: {len(runs)} run{'s' if len(runs) != 1 else ''}"
+            f" of contiguous frames, {how}"
+        )
 
     def _frame(self, slot: _Slot, msg: dict) -> None:
         i = slot.index
@@ -294,6 +464,7 @@ class _Pool:
             rec["worker"] = {"serial": slot.serial, "host": slot.host}
             self.res.records[i] = rec
             slot.frames += 1
+            self.res.warmup_frames += int(msg.get("warmup_frames", 0) or 0)
             if "busy_ms" in msg:
                 self.res.overhead_ms.append(rtt - float(msg["busy_ms"]))
         self.tick()
@@ -307,6 +478,11 @@ class _Pool:
             self.res.setup_errors.append(f"Ray worker {slot.serial} died while starting: {why}")
         i = slot.index
         slot.index = -1
+        # the rest of its run goes back whole, with its warm-up (taa: from the same
+        # frame, so that the frames are those of an uninterrupted run)
+        rest = slot.run.frames if slot.run is not None else deque()
+        warm_from = slot.run.warm_from if slot.run is not None else None
+        slot.run = None
         if i >= 0:
             n = self.attempts[i] = self.attempts.get(i, 1) + 1
             if n > MAX_ATTEMPTS:
@@ -318,11 +494,13 @@ class _Pool:
                 self.tick()
             else:
                 self.res.retried += 1
-                self.queue.appendleft(i)
+                rest.appendleft(i)
                 self.rep.say(
                     f"stb render: worker {slot.serial} on {slot.host} died during frame "
                     f"{_label(self.frames[i])}; re-running it"
                 )
+        if rest:
+            self.queue.appendleft(_Run(rest, warm_from))
         if self.queue and self.replacements > 0:
             self.replacements -= 1
             self._start()
@@ -371,8 +549,14 @@ def _label(fr: float | None) -> str:
     return f"{fr:g}"
 
 
-def _job(args: argparse.Namespace, first: float | None, threads: int) -> dict[str, Any]:
-    """The render's arguments for the workers, with absolute paths."""
+def _job(
+    args: argparse.Namespace,
+    first: float | None,
+    threads: int,
+    frames: list[float | None] | None = None,
+) -> dict[str, Any]:
+    """The render's arguments for the workers, with absolute paths; ``frames``: all
+    of ``--frames`` (default: ``first`` alone)."""
     values = {k: v for k, v in vars(args).items() if k not in _SKIP_ARGS}
     for k in ("scene", "output", "ocio_config"):
         if values.get(k):
@@ -380,7 +564,13 @@ def _job(args: argparse.Namespace, first: float | None, threads: int) -> dict[st
     values["stats"] = None  # written by the driver
     values["quiet"] = True
     values["print_graph"] = False
-    return {"args": values, "first": first, "threads": threads, "exit_mid_frame": exit_mid_frame}
+    return {
+        "args": values,
+        "first": first,
+        "frames": frames if frames is not None else [first],
+        "threads": threads,
+        "exit_mid_frame": exit_mid_frame,
+    }
 
 
 def _worker_resources(args: argparse.Namespace, total: dict[str, float]) -> dict[str, float]:
@@ -417,8 +607,6 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     from ..apps import render as r
     from ..io.images import frame_path, has_frame_placeholder
 
-    if getattr(args, "temporal", None) == "taa":
-        raise CliError("--ray renders frames independently: --temporal taa needs one process")
     r._check_settings(args)
     frames = r._check_outputs(args)
     r._render_settings(args)  # option checks before any worker starts
@@ -470,6 +658,7 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
             {"frame": frames[i] if frames[i] is not None else "default", "error": e}
             for i, e in sorted(res.failed.items())
         ],
+        "temporal": _temporal_stats(res),
         "wall_s": round(wall, 3),
         # driver round trip minus the worker's own time, per frame
         "scheduling_overhead_ms": {
@@ -491,6 +680,23 @@ def run(args: argparse.Namespace, rep: Reporter) -> int:
     if done == 0 and not args.skip_existing:
         return EXIT_ERROR
     return EXIT_OK
+
+
+def _temporal_stats(res: RunResult) -> dict[str, Any]:
+    """``--stats``' ``ray.temporal``: the mode the workers used (as a local render
+    would: ``--temporal auto`` resolved) and, with taa, how the frames were split."""
+    out: dict[str, Any] = {"mode": res.temporal}
+    if res.temporal == "taa":
+        out.update(
+            {
+                "warmup": TAA_WARMUP_FRAMES,
+                "runs": [{"warm_from": w, "first": a, "last": b} for w, a, b in res.runs],
+                "warmup_frames_rendered": res.warmup_frames,
+                # every run warmed up from --frames' first frame: the local frames
+                "exact": res.exact,
+            }
+        )
+    return out
 
 
 def _render_on(
@@ -517,7 +723,7 @@ def _render_on(
     )
     if not bar.disable:
         rep.bar = bar
-    job = _job(args, frames[0], int(resources["num_cpus"]))
+    job = _job(args, frames[0], int(resources["num_cpus"]), frames)
     pool = _Pool(ray, job, todo, frames, outputs, n, resources, rep, lambda: bar.update(1))
     try:
         res = pool.run()
