@@ -1,8 +1,9 @@
 // The bare light loop (`--lighting bare`): a yardstick, not a lighting method to look
 // at. Every FoV light of the same light buffer as a point light, unshadowed: position,
 // colour x intensity (cd), Lambert, inverse square, the range window -- the least a
-// correct per-pixel loop over the lights can do. `stb bench` reports every method's
-// cost per light-pixel against this loop's (issue 34). Scene-linear radiance (nits).
+// correct per-pixel loop over the lights can do; run it beside another method in one
+// `stb bench` to read that method's cost as a ratio to it (issue 34). Scene-linear
+// radiance (nits).
 #include "common/gbuffer.glsl"
 #include "common/lights.glsl"
 #include "common/lighting_out.glsl"

@@ -438,7 +438,7 @@ vec3 light_radiance_point(Light L, Surface s) {
         brdf_eval_layers(s, Ldir, dsp, ssp, csp, fc);
         float att = 1.0 - fc;
         d = dsp * E * att;
-        sp = ssp * E * (1.0 - 0.0) * att + vec3(csp) * E * (1.0 - 0.0);
+        sp = ssp * E * att + vec3(csp) * E;
     } else
 #endif
     {

@@ -4,8 +4,9 @@ Every FoV-culled light of the shared light buffer evaluated per pixel as an unsh
 point light: Lambert x inverse square x the range window (``shaders/bare_loop.frag``).
 No shapes, cones, IES, specular, shadows, sun or links: the least work a correct
 per-pixel light loop does, so that the exact methods' cost per light-pixel can be read
-as a ratio to the machine's own loop in the same run. Its image is right only for
-unshadowed, isotropic point lights on Lambert surfaces -- a closed form the tests use.
+as a ratio to the machine's own loop in the same run (``stb bench --methods
+bare,reference``). Its image is right only for unshadowed, isotropic point lights on
+Lambert surfaces; no test checks it yet.
 """
 
 from __future__ import annotations
