@@ -367,3 +367,25 @@ def test_moving_camera_on_ray_gives_the_local_frames(local_ray, tmp_path, monkey
         assert doc["temporal"]["mode"] == "taa" and doc["temporal"]["exact"]
         assert doc["frames_done"] == 8 and doc["frames_failed"] == 0
     assert killed
+
+
+def test_moving_camera_with_accumulate_on_ray_gives_the_local_frames(local_ray, tmp_path):
+    """Issue 36 item 3: ``--accumulate 3`` on a moving camera (``--temporal auto`` ->
+    taa, each frame accumulating its samples into the history): the Ray frames are the
+    local render's bytes, and ``ray.temporal`` records taa."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+    from ray_taa import compare, moving_scene
+
+    scene = tmp_path / "moving.usda"
+    scene.write_text(moving_scene(4, lights=8))
+    flags = ["--frames", "1:4", "--width", "48", "--height", "27", "--lighting", "stb"]
+    flags += ["--accumulate", "3", "-q"]
+    for name in ("local", "ray"):
+        (tmp_path / name).mkdir()
+    assert stb_main(["render", str(scene), str(tmp_path / "local" / "f.####.exr"), *flags]) == 0
+    stats = tmp_path / "ray" / "stats.json"
+    argv = ["render", str(scene), str(tmp_path / "ray" / "f.####.exr"), *flags]
+    assert stb_main([*argv, "--ray", "--workers", "2", "--stats", str(stats)]) == 0
+    rows = compare(tmp_path / "local", tmp_path / "ray", 4)
+    assert all(r["identical"] for r in rows), rows
+    assert json.loads(stats.read_text())["ray"]["temporal"]["mode"] == "taa"

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import statistics
 import sys
 import tempfile
 import time
@@ -103,6 +104,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--warmup", type=int, action="append", help="TAA_WARMUP_FRAMES (repeat)")
     ap.add_argument("--out", type=Path, help="keep the frames here (default: a temp dir)")
+    ap.add_argument(
+        "--repeat",
+        type=int,
+        default=3,
+        help="local and Ray runs alternate this many times; medians reported (the first "
+        "local run would otherwise pay the cold shader cache the Ray workers then reuse)",
+    )
     a = ap.parse_args(argv)
 
     import ray
@@ -120,24 +128,36 @@ def main(argv: list[str] | None = None) -> int:
     try:
         local = root / "local"
         local.mkdir(exist_ok=True)
-        t0 = time.perf_counter()
-        assert stb(["render", str(scene), str(local / "f.####.exr"), *flags]) == 0
-        t_local = time.perf_counter() - t0
-        print(json.dumps({"run": "local", "wall_s": round(t_local, 2)}), flush=True)
-        for w in a.warmup or [dist.TAA_WARMUP_FRAMES]:
-            dist.TAA_WARMUP_FRAMES = w
-            d = root / f"ray_w{w}"
-            d.mkdir(exist_ok=True)
-            st = d / "stats.json"
+        warmups = a.warmup or [dist.TAA_WARMUP_FRAMES]
+        t_locals: list[float] = []
+        t_rays: dict[int, list[float]] = {w: [] for w in warmups}
+        for _ in range(max(1, a.repeat)):
             t0 = time.perf_counter()
-            rc = stb(
-                [
-                    *("render", str(scene), str(d / "f.####.exr"), *flags, "--ray"),
-                    *("--stats", str(st), "--workers", str(a.workers)),
-                ]
-            )
-            t_ray = time.perf_counter() - t0
-            assert rc == 0, rc
+            assert stb(["render", str(scene), str(local / "f.####.exr"), *flags]) == 0
+            t_locals.append(time.perf_counter() - t0)
+            for w in warmups:
+                dist.TAA_WARMUP_FRAMES = w
+                d = root / f"ray_w{w}"
+                d.mkdir(exist_ok=True)
+                st = d / "stats.json"
+                t0 = time.perf_counter()
+                rc = stb(
+                    [
+                        *("render", str(scene), str(d / "f.####.exr"), *flags, "--ray"),
+                        *("--stats", str(st), "--workers", str(a.workers)),
+                    ]
+                )
+                t_rays[w].append(time.perf_counter() - t0)
+                assert rc == 0, rc
+        t_local = statistics.median(t_locals)
+        print(
+            json.dumps({"run": "local", "wall_s": round(t_local, 2), "runs": len(t_locals)}),
+            flush=True,
+        )
+        for w in warmups:
+            d = root / f"ray_w{w}"
+            st = d / "stats.json"
+            t_ray = statistics.median(t_rays[w])
             doc = json.loads(st.read_text())["ray"]
             rows = compare(local, d, a.frames)
             flips = [r["flip"] for r in rows]
@@ -146,8 +166,8 @@ def main(argv: list[str] | None = None) -> int:
                     {
                         "run": f"ray {a.workers} workers, warm-up {w}",
                         "wall_s": round(t_ray, 2),
-                        "ray_wall_s": doc["wall_s"],
-                        "speedup": round(t_local / doc["wall_s"], 2),
+                        "ray_wall_s_last": doc["wall_s"],
+                        "speedup": round(t_local / t_ray, 2),
                         "temporal": doc["temporal"],
                         "flip_max": round(max(flips), 5),
                         "identical": sum(r["identical"] for r in rows),

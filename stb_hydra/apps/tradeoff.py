@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.files import write_text_atomic
+from ..io.files import write_csv_atomic, write_text_atomic
 from .common import EXIT_OK, CliError, fail, open_stage
 
 STB_N = (1, 2, 4)
@@ -561,17 +561,8 @@ def read_rows(path: Path) -> list[dict]:
 
 
 def write_csv(rows: list[dict], path: Path, fields: list[str]) -> None:
-    tmp = path.with_suffix(".csv.tmp")
-    try:
-        with open(tmp, "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=fields, extrasaction="ignore")
-            w.writeheader()
-            for r in rows:
-                w.writerow(r)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    """``rows`` to ``path`` as CSV, atomically (:func:`~stb_hydra.io.files.write_csv_atomic`)."""
+    write_csv_atomic(path, rows, fields)
 
 
 def command_line(args) -> str:

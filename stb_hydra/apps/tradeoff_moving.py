@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.files import write_text_atomic
+from ..io.files import write_csv_atomic, write_text_atomic
 
 #: (method, temporal, options) of the moving scenario, reference first.
 MOVING_CONFIGS: tuple[tuple[str, str, dict], ...] = (
@@ -223,9 +223,7 @@ def run_moving(args, stage, name: str, out: Path) -> list[dict]:
 
 def write_moving(rows: list[dict], out: Path) -> None:
     """``moving.csv`` and ``moving.md`` in ``out`` (atomic writes)."""
-    from .tradeoff import write_csv
-
-    write_csv(rows, out / "moving.csv", MOVING_FIELDS)
+    write_csv_atomic(out / "moving.csv", rows, MOVING_FIELDS)
     if not rows:
         return
     r0 = rows[0]

@@ -85,7 +85,7 @@ class RenderWorker:
 
         import stb_hydra  # noqa: F401  (schema registration before any stage)
 
-        from ..apps import render as r
+        from ..apps import render_steps as r
         from ..apps.common import open_stage
 
         if threads:
@@ -111,7 +111,7 @@ class RenderWorker:
 
     def _build(self) -> None:
         """The engine at the first frame; ``started`` False: nothing rendered yet."""
-        from ..apps import render as r
+        from ..apps import render_steps as r
 
         if self.eng is not None:
             self.eng.release()
@@ -151,7 +151,7 @@ class RenderWorker:
         and renders positions ``warm_from .. index - 1`` first, unwritten (after
         ``--frames``' first frame when ``warm_from`` > 0, for the shadow atlas, with
         the history dropped after it)."""
-        from ..apps import render as r
+        from ..apps import render_steps as r
         from ..io.images import ImageWriteError
         from ..renderer.engine import RenderError
 
@@ -604,7 +604,7 @@ def _n_workers(args: argparse.Namespace, res: dict[str, float], total: dict, tod
 
 def run(args: argparse.Namespace, rep: Reporter) -> int:
     """``stb render`` on Ray: the driver (checks, queue, progress, stats)."""
-    from ..apps import render as r
+    from ..apps import render_steps as r
     from ..io.images import frame_path, has_frame_placeholder
 
     r._check_settings(args)

@@ -86,3 +86,18 @@ def write_text_atomic(path: PathLike, text: str) -> Path:
             raise FileWriteError(p, exc.strerror or str(exc)) from None
         raise
     return p
+
+
+def write_csv_atomic(path: PathLike, rows: list[dict], fields: list[str]) -> Path:
+    """``rows`` as CSV with the header ``fields`` (keys not in ``fields`` ignored),
+    formatted in memory first and written by :func:`write_text_atomic`: a row that
+    cannot be formatted leaves any old file as it was."""
+    import csv
+    import io
+
+    buf = io.StringIO(newline="")
+    w = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow(r)
+    return write_text_atomic(path, buf.getvalue())

@@ -95,7 +95,7 @@ class Engine:
         self._seen_warnings: set[str] = set()
         self._in_sequence = False
         self._requested_aovs: set[str] = {"color"}
-        self._graph: CompiledGraph | None = None
+        self._graph: CompiledGraph[Pass] | None = None
         #: Light linking when the graph was compiled (it adds the G-buffer's g_link).
         self._graph_features: tuple[bool, bool] = (False, False)
         self._scopes: dict[int, _PassScope] = {}
@@ -134,7 +134,7 @@ class Engine:
         return (d.light_table.has_light_links(), d.has_clearcoat)
 
     @property
-    def graph(self) -> CompiledGraph:
+    def graph(self) -> CompiledGraph[Pass]:
         """The compiled pass graph (built on first use after a change)."""
         if self._graph is None:
             self._graph_features = self._features()

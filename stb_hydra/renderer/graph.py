@@ -25,10 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from .tasks.base import Pass
+from typing import Generic, Protocol, TypeVar
 
 #: Texture formats: name -> (components, moderngl dtype).
 FORMATS: dict[str, tuple[int, str]] = {
@@ -130,8 +127,29 @@ class Imported:
 Resource = Tex | Rec | Imported
 
 
+class GraphNode(Protocol):
+    """What the graph reads of a pass (``tasks/base.Pass`` is one): its name, flags
+    and declared ``(reads, writes)``. A protocol, so the graph does not import the
+    passes that import its resource types."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def only_final(self) -> bool: ...
+
+    @property
+    def side_effect(self) -> bool: ...
+
+    def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]: ...
+
+
+#: The concrete pass type a graph is compiled from (and hands back in order).
+Pass = TypeVar("Pass", bound=GraphNode)
+
+
 @dataclass
-class CompiledGraph:
+class CompiledGraph(Generic[Pass]):
     """The scheduled passes in execution order and the resources they use."""
 
     passes: list[Pass]
@@ -271,7 +289,7 @@ def compile_graph(
     passes: Iterable[Pass],
     imports: Iterable[str] = (),
     off: dict[str, str] | None = None,
-) -> CompiledGraph:
+) -> CompiledGraph[Pass]:
     """Order, check and cull ``passes`` (in registration order).
 
     ``imports``: resource names owned outside the graph. ``off``: resource key ->

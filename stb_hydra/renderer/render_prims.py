@@ -7,7 +7,7 @@ records the bits it consumed in ``pending_bits`` so the delegate's
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -16,13 +16,32 @@ from ..scene import prims
 from ..scene.locators import DirtyBits as D
 
 if TYPE_CHECKING:
+    from ..scene.prims import LightPrim
     from ..scene.stage_scene_index import (
         CameraDataSource,
         LightDataSource,
         MaterialDataSource,
         MeshDataSource,
     )
-    from .delegate import RenderDelegate
+    from .light_table import LightTable
+
+
+class PrimHost(Protocol):
+    """What a render prim reads of its render delegate (``delegate.RenderDelegate``
+    is one): a protocol, so this module does not import the delegate that imports
+    it."""
+
+    @property
+    def light_table(self) -> LightTable: ...
+
+    def write_light(self, row: int, lp: LightPrim) -> None: ...
+
+    def release_light(self, path: str) -> None: ...
+
+    def release_mesh(self, path: str) -> None: ...
+
+    def warn_once(self, key: str, msg: str) -> None: ...
+
 
 _LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyResource
 
@@ -30,7 +49,7 @@ _LIGHT_FULL = D.DirtyParams | D.DirtyShadowParams | D.DirtyResource
 class RenderPrim:
     prim_type: str = ""
 
-    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+    def __init__(self, delegate: PrimHost, path: str, prim_type: str) -> None:
         self.delegate = delegate
         self.path = path
         self.prim_type = prim_type
@@ -46,7 +65,7 @@ class RenderPrim:
 
 
 class LightSprim(RenderPrim):
-    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+    def __init__(self, delegate: PrimHost, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.light: prims.LightPrim | None = None
         self.row = delegate.light_table.alloc(path)
@@ -81,7 +100,7 @@ class LightSprim(RenderPrim):
 
 
 class MeshRprim(RenderPrim):
-    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+    def __init__(self, delegate: PrimHost, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.mesh: prims.MeshPrim | None = None
 
@@ -167,7 +186,7 @@ class MeshRprim(RenderPrim):
 
 
 class CameraSprim(RenderPrim):
-    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+    def __init__(self, delegate: PrimHost, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.camera: prims.CameraPrim | None = None
         self.exposure_scale = 1.0
@@ -183,7 +202,7 @@ class CameraSprim(RenderPrim):
 
 
 class MaterialSprim(RenderPrim):
-    def __init__(self, delegate: RenderDelegate, path: str, prim_type: str) -> None:
+    def __init__(self, delegate: PrimHost, path: str, prim_type: str) -> None:
         super().__init__(delegate, path, prim_type)
         self.material: prims.MaterialPrim | None = None
 
