@@ -6,7 +6,7 @@
 // never spills into a neighbouring cell. Depth (z / w) is that of the per-face path.
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 18) out;
-uniform mat4 u_face_vp[6];
+uniform mat4 u_face_vp[LIM_CUBE_FACES];
 uniform int u_face_mask;
 out float gl_ClipDistance[4];
 #ifdef ALPHA_TEST

@@ -12,7 +12,7 @@ uniform float u_far;
 uniform float u_tan_half;       // spot: tan(fov / 2)
 uniform float u_range;
 uniform float u_bias_angle;     // bias = u_bias_angle * distance (rad: ~1 texel)
-uniform mat3 u_face_rot[6];     // omni: world direction -> face view space (looks down -Z)
+uniform mat3 u_face_rot[LIM_CUBE_FACES];     // omni: world direction -> face view space (looks down -Z)
 
 layout(location = 0) out float o_depth;
 

@@ -50,8 +50,8 @@ uniform float u_cur_weight;    // a moving pixel's own sample against the neighb
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
 uniform int u_light_changes;
-uniform vec4 u_light_spheres[16];
-uniform float u_light_caps[16];
+uniform vec4 u_light_spheres[LIM_MAX_LIGHT_CHANGES];
+uniform float u_light_caps[LIM_MAX_LIGHT_CHANGES];
 
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_history;

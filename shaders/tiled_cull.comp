@@ -36,7 +36,7 @@ uniform vec4 u_slices;         // near_split, far, slices, slices / ln(far / nea
 layout(binding = TEX_UNIT_HIZ) uniform sampler2D u_hiz;  // rg32f (min, max) depth, one texel per tile
 #endif
 
-shared uint s_mask[2];
+shared uint s_mask[LIM_CULL_MASK_WORDS];
 shared uint s_count;
 
 // Inside-distance of a view-space point to the side plane through the screen line
@@ -74,7 +74,10 @@ void main() {
     vec2 a0 = (p0 * u_resolution.zw * 2.0 - 1.0) * u_tan_off.xy + u_tan_off.zw;
     vec2 a1 = (p1 * u_resolution.zw * 2.0 - 1.0) * u_tan_off.xy + u_tan_off.zw;
 
-    if (t == 0u) { s_count = 0u; s_mask[0] = 0u; s_mask[1] = 0u; }
+    if (t == 0u) {
+        s_count = 0u;
+        for (uint w = 0u; w < uint(LIM_CULL_MASK_WORDS); ++w) s_mask[w] = 0u;
+    }
     memoryBarrierShared();
     barrier();
     uint n = dmax >= dmin ? u_counts.x : 0u;  // empty (background-only) tile: nothing
@@ -96,16 +99,18 @@ void main() {
         if (hit) atomicOr(s_mask[t >> 5], 1u << (t & 31u));
         memoryBarrierShared();
         barrier();
-        uint m0 = s_mask[0], m1 = s_mask[1];
-        uint before = t < 32u ? bitCount(m0 & ((1u << t) - 1u))
-                              : bitCount(m0) + bitCount(m1 & ((1u << (t - 32u)) - 1u));
+        // rank among this batch's hits: the set bits below thread t in the group mask
+        uint before = uint(bitCount(s_mask[t >> 5] & ((1u << (t & 31u)) - 1u)));
+        for (uint w = 0u; w < (t >> 5); ++w) before += uint(bitCount(s_mask[w]));
         uint rank = s_count + before;
         if (hit && rank < u_cap) cell_lights[cell * u_stride + rank] = i;
         memoryBarrierShared();
         barrier();
         if (t == 0u) {
-            s_count += uint(bitCount(m0) + bitCount(m1));
-            s_mask[0] = 0u; s_mask[1] = 0u;
+            for (uint w = 0u; w < uint(LIM_CULL_MASK_WORDS); ++w) {
+                s_count += uint(bitCount(s_mask[w]));
+                s_mask[w] = 0u;
+            }
         }
         memoryBarrierShared();
         barrier();

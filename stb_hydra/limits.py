@@ -328,6 +328,8 @@ TILED_CAP_DEFAULT = 64
 #: Culling invocations per tile / cluster workgroup: one light per invocation per step,
 #: list order kept with two 32-bit ballot words (so at most 64).
 CULL_GROUP_SIZE = 64
+#: Shared-memory hit-mask words of tiled_cull.comp: one bit per thread of a group.
+CULL_MASK_WORDS = (CULL_GROUP_SIZE + 31) // 32
 
 #: Most light-list entries (light x tile/cluster pairs) one frame may store: 32 Mi uint32
 #: = 128 MiB of SSBO. Uncapped lists of huge lights over many cells past this get a
@@ -547,3 +549,16 @@ MAX_SHADOW_LINK_GROUPS = 32
 #: Distinct membership signatures past which the closest-pair merge (quadratic in the
 #: signatures) gives way to keeping the largest groups and folding the rest into one.
 LINK_MERGE_MAX_SIGNATURES = 2048
+
+
+# --- Temporal pass, distant lights (per-frame uniform arrays) ---------------------------
+
+#: Lights whose large change shortens taa's history per pixel (``u_light_spheres`` /
+#: ``u_light_caps`` of temporal.frag); more changed lights than this in one frame: the
+#: smallest cap everywhere.
+MAX_LIGHT_CHANGES = 16
+#: Unshadowed distant lights beside the sun (``u_dist_dir`` / ``u_dist_illum`` of the
+#: frame block, common/frame.glsl); more: the brightest are kept, with a warning.
+MAX_EXTRA_DISTANT = 3
+#: Faces of a cube shadow map (``u_face_vp`` / ``u_face_rot``): geometry, not a knob.
+CUBE_FACES = 6

@@ -66,6 +66,23 @@ def test_glsl_has_no_copies_of_shared_literals(pattern: str, use: str):
     assert not hits, f"{hits}: use {use} (stb_hydra/renderer/shader_constants.py)"
 
 
+def test_interface_arrays_are_sized_by_generated_constants():
+    """Issue 33 item 4: every array the host fills (uniforms, uniform/buffer block
+    members, shared memory) is sized by a ``LIM_*`` / generated constant, never a
+    literal that the Python side could drift from; local arrays (a quad's 4 pixels, a
+    box's 8 corners, a triangle's 3 vertices) are geometry and may stay literal."""
+    literal = re.compile(r"\[\s*\d+\s*\]")
+    hits = []
+    for rel in SOURCES:
+        code = _code(shader_source(rel))
+        for m in re.finditer(r"^\s*(uniform|shared)\b[^;{]*;", code, re.M):
+            if literal.search(m.group(0)):
+                hits.append((rel, m.group(0).strip()))
+        for m in re.finditer(r"\b(uniform|buffer)\s+\w+\s*\{([^}]*)\}", code):
+            hits += [(rel, ln.strip()) for ln in m.group(2).splitlines() if literal.search(ln)]
+    assert not hits, f"literal array sizes (use limits.py via shader_constants): {hits}"
+
+
 def test_light_struct_matches_the_python_layout():
     code = _code(shader_source("common/lights.glsl"))
     body = re.search(r"struct\s+Light\s*\{(.*?)\};", code, flags=re.S).group(1)
@@ -127,3 +144,16 @@ def test_every_shader_compiles_with_every_feature(gl_ctx):
             lib.compute(stage, ALL_FEATURES)
         elif stage.endswith(".frag"):
             lib.program(_VERTEX_OF.get(stage, "fullscreen.vert"), stage, ALL_FEATURES)
+
+
+def test_program_cache_keys_on_the_generated_source(gl_ctx):
+    """Issue 33 item 4: requests that generate the same GLSL share one compile
+    (``True`` and ``1`` both write ``#define X 1``; ``False`` writes nothing), and a
+    request whose text differs is a new program."""
+    lib = ShaderLibrary(gl_ctx)
+    a = lib.program("fullscreen.vert", "depth_only.frag", {"STB_CACHE_PROBE": True})
+    b = lib.program("fullscreen.vert", "depth_only.frag", {"STB_CACHE_PROBE": 1})
+    assert a is b and lib.compiled == 1
+    c = lib.program("fullscreen.vert", "depth_only.frag", {"STB_CACHE_PROBE": False})
+    d = lib.program("fullscreen.vert", "depth_only.frag")
+    assert c is d and c is not a and lib.compiled == 2

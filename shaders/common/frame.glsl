@@ -19,8 +19,8 @@ layout(std140, binding = UBO_FRAME) uniform FrameBlock {
     vec4 u_sun_mult;        // x diffuse, y specular multiplier, z shadow bias (m), w normal bias (m)
     vec4 u_sun_shadow_color;// rgb shadow colour, w shadow-map texel size (1/px)
     vec4 u_ambient;         // rgb dome radiance (nits), w number of extra distant lights
-    vec4 u_dist_dir[3];     // extra (unshadowed) distant lights: xyz towards the light, w diffuse mult
-    vec4 u_dist_illum[3];   // rgb illuminance (lux), w specular mult
+    vec4 u_dist_dir[LIM_MAX_EXTRA_DISTANT];     // extra (unshadowed) distant lights: xyz towards the light, w diffuse mult
+    vec4 u_dist_illum[LIM_MAX_EXTRA_DISTANT];   // rgb illuminance (lux), w specular mult
     uvec4 u_counts;         // x FoV light count, y seed, z, w big tiles x, y (LIM_BIG_TILE_PX)
 };
 

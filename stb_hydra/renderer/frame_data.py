@@ -7,12 +7,13 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
+from .. import limits
 from .camera import ViewSetup
 from .shader_constants import UBO_FRAME
 
 #: mat4 x 6 + vec4 x 9 + vec4[3] x 2 + uvec4 (std140: every member 16-byte aligned).
 FRAME_BLOCK_BYTES = 6 * 64 + 16 * 16
-MAX_EXTRA_DISTANT = 3
+MAX_EXTRA_DISTANT = limits.MAX_EXTRA_DISTANT
 
 
 @dataclass

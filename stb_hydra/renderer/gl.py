@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import posixpath
 import re
 import threading
@@ -107,13 +108,21 @@ def shader_source(name: str) -> str:
     :data:`CONSTANTS_INCLUDE` is generated."""
     if name == CONSTANTS_INCLUDE:
         return constants_glsl()
-    node = shader_root()
-    for part in name.split("/"):
-        node = node.joinpath(part)
-    try:
-        return node.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise GLError(f"shader source not found: {SHADER_PACKAGE}/{name}") from exc
+    text = _sources.get(name)
+    if text is None:
+        node = shader_root()
+        for part in name.split("/"):
+            node = node.joinpath(part)
+        try:
+            text = node.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise GLError(f"shader source not found: {SHADER_PACKAGE}/{name}") from exc
+        _sources[name] = text
+    return text
+
+
+#: Shader files read once per process (package data does not change under a process).
+_sources: dict[str, str] = {}
 
 
 def _expand(name: str, seen: set[str]) -> str:
@@ -145,8 +154,13 @@ def preprocess(name: str, defines: dict[str, object] | None = None) -> str:
 
 @dataclass(frozen=True)
 class ProgramKey:
+    """A compiled program's identity: its stage files and the SHA-1 of the full
+    generated source of every stage (version, defines, generated constants, expanded
+    includes), so two requests that produce the same GLSL share one compile and a
+    change anywhere in the text is a new program."""
+
     stages: tuple[str, ...]
-    defines: tuple[tuple[str, str], ...]
+    source_sha1: str
 
 
 class ShaderLibrary:
@@ -156,6 +170,10 @@ class ShaderLibrary:
         self.ctx = ctx
         self._programs: dict[ProgramKey, moderngl.Program] = {}
         self._compute: dict[ProgramKey, moderngl.ComputeShader] = {}
+        self._texts: dict[
+            tuple[tuple[str, ...], tuple[tuple[str, str], ...]],
+            tuple[ProgramKey, tuple[str | None, ...]],
+        ] = {}
         self._ltc: moderngl.TextureArray | None = None
         self.compiled = 0
 
@@ -171,10 +189,23 @@ class ShaderLibrary:
             self._ltc = tex
         return self._ltc
 
-    @staticmethod
-    def _key(stages: Iterable[str], defines: Mapping[str, object] | None) -> ProgramKey:
-        d = tuple(sorted((k, str(v)) for k, v in (defines or {}).items() if v is not False))
-        return ProgramKey(tuple(stages), d)
+    def _sources(
+        self, stages: Iterable[str], defines: Mapping[str, object] | None
+    ) -> tuple[ProgramKey, tuple[str | None, ...]]:
+        """(key, preprocessed source per stage; None for an absent stage). The text of
+        a (stages, defines) request is memoised: preprocessing costs ~1 ms."""
+        names = tuple(stages)
+        req = (names, tuple(sorted((k, repr(v)) for k, v in (defines or {}).items())))
+        hit = self._texts.get(req)
+        if hit is None:
+            d = dict(defines or {})
+            texts = tuple(preprocess(n, d) if n else None for n in names)
+            h = hashlib.sha1()
+            for t in texts:
+                h.update(b"\0" if t is None else t.encode("utf-8") + b"\0")
+            hit = (ProgramKey(names, h.hexdigest()), texts)
+            self._texts[req] = hit
+        return hit
 
     def program(
         self,
@@ -184,12 +215,12 @@ class ShaderLibrary:
         geometry: str | None = None,
     ) -> moderngl.Program:
         stages = (vertex, fragment or "") + ((geometry,) if geometry else ())
-        key = self._key(stages, defines)
+        key, texts = self._sources(stages, defines)
         prog = self._programs.get(key)
         if prog is None:
-            vs = preprocess(vertex, defines)
-            fs = preprocess(fragment, defines) if fragment else None
-            gs = preprocess(geometry, defines) if geometry else None
+            vs = cast(str, texts[0])
+            fs = texts[1]
+            gs = texts[2] if geometry else None
             try:
                 prog = self.ctx.program(vertex_shader=vs, fragment_shader=fs, geometry_shader=gs)
             except moderngl.Error as exc:
@@ -202,11 +233,11 @@ class ShaderLibrary:
     def compute(
         self, name: str, defines: dict[str, object] | None = None
     ) -> moderngl.ComputeShader:
-        key = self._key((name,), defines)
+        key, texts = self._sources((name,), defines)
         cs = self._compute.get(key)
         if cs is None:
             try:
-                cs = self.ctx.compute_shader(preprocess(name, defines))
+                cs = self.ctx.compute_shader(cast(str, texts[0]))
             except moderngl.Error as exc:
                 raise GLError(f"compiling {name} failed:\n{exc}") from None
             self._compute[key] = cs

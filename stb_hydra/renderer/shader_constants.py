@@ -195,6 +195,10 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_MATERIAL_TEXTURE_SLOTS": str(limits.MATERIAL_TEXTURE_SLOTS),
         "LIM_UDIM_FIRST_TILE": str(limits.UDIM_FIRST_TILE),
         "LIM_LINK_GROUPS": str(limits.MAX_LIGHT_LINK_GROUPS),
+        "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
+        "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
+        "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),
+        "LIM_CUBE_FACES": str(limits.CUBE_FACES),
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 import moderngl
 import numpy as np
 
+from ... import limits
 from ..camera import ViewSetup
 from ..frame import FrameContext
 from ..fullscreen import draw_fullscreen
@@ -84,7 +85,7 @@ CUT_MOVE_FRACTION = 0.25
 #: wins; smaller changes (a flicker of a few %) are left to the clip box.
 LIGHT_CHANGE_RULES = ((1, 0.5, 0.25, 0.9), (8, 0.2, 0.05, 0.99))
 #: Changed lights passed to the shader; more than this: the smallest cap everywhere.
-MAX_LIGHT_CHANGES = 16
+MAX_LIGHT_CHANGES = limits.MAX_LIGHT_CHANGES
 #: Light-table columns whose change is a switch (history cap 1).
 _LIGHT_EXACT = ("enabled", "live", "type", "emission", "ies_layer")
 #: Jitter sequence length (Halton 2, 3).
