@@ -271,6 +271,32 @@ def test_ies_normalize_preserves_flux(gl_ctx, testdata):
     assert rel.max() < 0.02, f"max relative error {rel.max():.4f}"
 
 
+def test_ies_normalize_keeps_the_flux_of_a_hemispherical_profile(gl_ctx, testdata):
+    """Issue 33 item 2: a profile given over the lower hemisphere only (Photon's
+    constant 0.5 cd, vertical angles 0-90) normalised has mean 0.5 x 2pi / 4pi = 0.25
+    over the sphere, so it emits 2 I0 downwards and nothing upwards: the flux of the
+    same sphere light without IES, and a floor below lit twice as brightly."""
+    ies = testdata / "ies" / "photon__constant_point5_candela.IES"
+    lpos = (0.0, 2.0, 0.0)
+    with_ies = local_light(
+        "SphereLight",
+        lpos,
+        rot_x=-90,
+        intensity=1000,
+        extra=f"asset inputs:shaping:ies:file = @{ies}@\n    bool inputs:shaping:ies:normalize = 1",
+        schemas='"ShapingAPI"',
+    )
+    I0 = 1000 * math.pi * 0.1**2
+    shaped = _read(floor_stage(with_ies))
+    assert shaped.flux == pytest.approx(4 * math.pi * I0, rel=1e-2)
+    stage = floor_stage(with_ies)
+    img = render(stage)
+    pts = ground_points(stage)
+    exp = RHO / math.pi * point_illuminance(pts, 2.0 * I0, lpos)
+    rel = np.abs(img[..., 0] - exp) / exp
+    assert rel.max() < 0.02, f"max relative error {rel.max():.4f}"
+
+
 # --- area lights far away ------------------------------------------------------------
 
 

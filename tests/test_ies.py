@@ -222,7 +222,9 @@ def test_photon_parse_1995_files(profiles) -> None:
 
 def test_photon_constant_point5_normalised_attenuation(profiles) -> None:
     p = profiles["photon__constant_point5_candela.IES"]
-    assert p.is_hemispherical and p.power() == pytest.approx(0.5, rel=1e-12)
+    # Photon's "normalised attenuation" is the profile over its peak; our normalisation
+    # (shaping:ies:normalize) divides by the mean over the sphere: 0.5 x 2pi / 4pi
+    assert p.is_hemispherical and p.power() == pytest.approx(0.25, rel=1e-12)
     cases = [
         ((0, 0), 1.0),
         ((PI, 0), 0.0),
@@ -234,7 +236,7 @@ def test_photon_constant_point5_normalised_attenuation(profiles) -> None:
         ((PI / 2, PI), 1.0),
     ]
     for (theta, phi), expected in cases:
-        assert p.sample(theta, phi) / p.power() == pytest.approx(expected, abs=1e-4)
+        assert p.sample(theta, phi) / p.max_candela() == pytest.approx(expected, abs=1e-4)
 
 
 # --- photometric-viewer tests/photometry/ies95 -------------------------------------------
@@ -761,9 +763,9 @@ def test_power_flux_closed_forms() -> None:
     hemi = parse_ies(make_ies([0, 10, 90], [0, 45, 90], 3.0))
     assert hemi.is_hemispherical
     assert hemi.flux() == pytest.approx(2 * PI * 3.0, rel=1e-12)
-    assert hemi.power() == pytest.approx(3.0, rel=1e-12)
+    assert hemi.power() == pytest.approx(1.5, rel=1e-12)  # mean over the sphere: 3 x 2pi / 4pi
     up = parse_ies(make_ies([90, 180], [0], 2.0))
-    assert up.is_hemispherical and up.power() == pytest.approx(2.0, rel=1e-12)
+    assert up.is_hemispherical and up.power() == pytest.approx(1.0, rel=1e-12)
     # multiplier and ballast are applied, n_lamps is not
     scaled = parse_ies(make_ies([0, 180], [0], 2.0, mult=3.0, ballast=0.5))
     assert scaled.power() == pytest.approx(3.0, rel=1e-12)
@@ -779,6 +781,30 @@ def test_power_flux_closed_forms() -> None:
     assert b_full.flux() == pytest.approx(4 * PI, rel=1e-12)
     b_std = parse_ies(make_ies([-90, 90], [-90, 0, 90], 1.0, ptype=2))  # lower hemisphere
     assert b_std.flux() == pytest.approx(2 * PI, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("v", "h", "ptype"),
+    [
+        ([0, 30, 90], [0], 1),  # type C axial
+        ([0, 30, 90], [0, 45, 90], 1),  # type C quadrant-symmetric (0-90)
+        ([0, 30, 90], [0, 90, 180], 1),  # type C bilateral (0-180)
+        ([0, 30, 90], [0, 90, 180, 270, 360], 1),  # type C full
+        ([90, 120, 180], [0, 90], 1),  # type C upper hemisphere, quadrant
+        ([-90, 0, 90], [0, 90], 3),  # type A lateral symmetry, lower hemisphere
+        ([-90, 0, 90], [-90, 0, 90], 3),  # type A, lower hemisphere
+        ([-90, 90], [0, 45, 90], 2),  # type B lateral symmetry, lower hemisphere
+    ],
+)
+def test_normalize_divides_by_the_mean_over_the_sphere(v, h, ptype) -> None:
+    """Issue 33 item 2: a constant c over one hemisphere, whatever the photometric
+    type and the symmetry the file folds, has flux 2 pi c and sphere mean c / 2, so
+    ``shaping:ies:normalize`` (``sample / power``) makes it 2 there: the light keeps
+    the flux 4 pi of the same light without IES (hdEmbree's / 2pi would give 1: half)."""
+    p = parse_ies(make_ies(v, h, 3.0, ptype=ptype))
+    assert p.flux() == pytest.approx(2 * PI * 3.0, rel=1e-9)
+    assert p.power() == pytest.approx(1.5, rel=1e-9)
+    assert _brute_flux(p) / p.power() == pytest.approx(4 * PI, rel=2e-3)
 
 
 @pytest.mark.parametrize(

@@ -172,9 +172,16 @@ class IesProfile:
         return float(_hat_integrals(g.h, g.h_weight) @ g.cd @ _hat_integrals(g.v, g.v_weight))
 
     def power(self) -> float:
-        """Mean intensity (cd) used by ``shaping:ies:normalize`` (hdEmbree semantics):
-        flux / 2pi for a hemispherical profile (see ``is_hemispherical``), else / 4pi."""
-        return self.flux() / (2.0 * math.pi if self.is_hemispherical else 4.0 * math.pi)
+        """Mean intensity (cd) over the whole sphere, flux / 4pi, by which
+        ``shaping:ies:normalize`` divides the profile: the normalised light emits the
+        flux of the same light without IES ("shapes the light, preserves its energy"),
+        whatever part of the sphere the file covers and whatever symmetry it folds.
+
+        hdEmbree divides a hemispherical profile's flux by 2pi (and integrates only the
+        file's own horizontal range, so a quadrant-symmetric file counts a quarter of
+        its flux): a hemispherical light then emits half the unshaped light's flux.
+        We do not follow it there (issue 33, docs in ``scene/lights.py``)."""
+        return self.flux() / (4.0 * math.pi)
 
     def max_candela(self) -> float:
         """Largest intensity (cd) in the file; interpolation never exceeds it."""

@@ -15,7 +15,9 @@ Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
   sphere lights with the point model); the far-field numbers above are their limit.
 * ShapingAPI: cone cut-off/softness/focus/focusTint about -Z, IES sampled at the
   light-space polar angle from -Z (nadir) after ``angleScale``; the profile
-  value is a factor on L (divided by the profile power when normalised).
+  value is a factor on L (divided by the profile's mean intensity over the whole
+  sphere, flux / 4 pi, when normalised: the light keeps the flux it has without IES,
+  also for hemispherical and symmetry-folded files; ``IesProfile.power``).
 * DistantLight: ``intensity`` -> illuminance (lux) facing the light:
   ``E = L * pi sin^2(theta_max)`` (theta_max = angle/2), ``E = L`` when the
   angle is 0 or ``normalize`` is on. DomeLight: uniform radiance L (nits),
