@@ -92,6 +92,10 @@ class LightingMethod:
     #: The method's light loop has a point-only part: in-view lights are ordered point
     #: lights first and ``u_point_lights`` says how many (``InViewLights.point_count``).
     points_first: ClassVar[bool] = False
+    #: Area-light penumbrae rotate their point set per frame (``AREA_SHADOW_PER_FRAME``,
+    #: common/shadow.glsl), so ``--accumulate`` converges to the light's visibility: the
+    #: exact methods (frame 0 is the fixed set of a single frame).
+    area_shadows_per_frame: ClassVar[bool] = False
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -164,6 +168,8 @@ class LightingMethod:
                 defines["HAS_SHADOWS"] = True
                 if frame.settings.shadow_filter == "stochastic":
                     defines["STOCHASTIC_PCF"] = True
+                if self.area_shadows_per_frame:
+                    defines["AREA_SHADOW_PER_FRAME"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:

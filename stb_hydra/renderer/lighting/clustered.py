@@ -135,6 +135,7 @@ def grid_uniforms(prog: moderngl.Program | moderngl.ComputeShader, grid: Cluster
 class ClusteredLighting(LightingMethod):
     name = "clustered"
     points_first = True
+    area_shadows_per_frame = True
     options = OPTIONS
 
     @classmethod

@@ -68,6 +68,7 @@ OPTIONS = GRID_OPTIONS + Schema(
 class LightTreeLighting(LightingMethod):
     name = "lighttree"
     options = OPTIONS
+    area_shadows_per_frame = True
 
     @classmethod
     def check_options(cls, o: dict) -> None:

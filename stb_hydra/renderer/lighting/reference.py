@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 class ReferenceLighting(LightingMethod):
     name = "reference"
     points_first = True
+    area_shadows_per_frame = True
 
     def execute(self, frame: FrameContext) -> None:
         defines = self.scene_defines(frame)

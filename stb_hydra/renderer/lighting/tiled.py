@@ -139,6 +139,7 @@ def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
 class TiledLighting(LightingMethod):
     name = "tiled"
     points_first = True
+    area_shadows_per_frame = True
     options = OPTIONS
     hiz_level = int(math.log2(limits.TILED_TILE_PX))
 
