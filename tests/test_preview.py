@@ -641,3 +641,35 @@ def test_light_list_shows_links(scene, gl_ctx):
         assert rec["/Lights/Left"]["linked"] and not rec["/Lights/Right"]["linked"]
     finally:
         s.release()
+
+
+@pytest.mark.gl
+def test_time_display_says_default_for_the_default_time_code(scene, tmp_path, gl_ctx, capfd):
+    """HUD and ``stb inspect``: a stage without a time range is read at the default
+    (earliest) time code, shown as "default", never as -1.79769e+308; an animated
+    stage shows its time code's value."""
+    from stb_hydra.apps import cli
+
+    s = _session(scene, gl_ctx, "reference", max_samples=1)
+    try:
+        assert s.time is None and s.time_text == "default"
+    finally:
+        s.release()
+    p = tmp_path / "anim.usda"
+    p.write_text(ANIMATED_USDA)
+    s = _session(p, gl_ctx, "reference", max_samples=1)
+    try:
+        assert s.time == 1.0 and s.time_text == "1"
+        s.set_time(7.5)
+        _converge(s)
+        assert s.time_text == "7.5"
+    finally:
+        s.release()
+    for args in ([], ["--json"]):
+        capfd.readouterr()
+        assert cli.main(["inspect", str(scene), *args]) == 0
+        out = capfd.readouterr().out
+        assert "default" in out and "e+308" not in out and "1.79769" not in out
+    capfd.readouterr()
+    assert cli.main(["inspect", str(scene), "--json", "--time", "3"]) == 0
+    assert json.loads(capfd.readouterr().out)["time"] == 3.0

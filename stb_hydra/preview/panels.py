@@ -62,8 +62,7 @@ def draw_hud(s: PreviewSession, ps: PanelState) -> None:
     )
     if s.engine is not None:
         st = s.engine.settings
-        t = s.time
-        when = f"  time {t:g}{' (playing)' if s.playing else ''}" if t is not None else ""
+        when = f"  time {s.time_text}{' (playing)' if s.playing else ''}"
         imgui.text(f"render {st.width}x{st.height}  view {s.view}{when}")
     if s.message:
         imgui.text_colored(_RED, s.message)

@@ -693,11 +693,25 @@ class PreviewSession:
 
     @property
     def time(self) -> float | None:
+        """The time code the stage is read at; None for ``Usd.TimeCode.Default()`` and
+        the earliest time (a stage without an authored range), and when nothing loaded."""
         if not self.ok:
             return None
         assert self.engine is not None
         t = self.engine.scene_index.time
-        return None if t.IsDefault() else float(t.GetValue())
+        return None if t.IsDefault() or t.IsEarliestTime() else float(t.GetValue())
+
+    @property
+    def time_text(self) -> str:
+        """The time for people (HUD, time tab): ``"default"`` for the default and the
+        earliest time code, never the raw double; otherwise the value (``%g``)."""
+        if not self.ok:
+            return "default"
+        assert self.engine is not None
+        from ..scene.stage_io import time_label
+
+        lab = time_label(self.engine.scene_index.time)
+        return lab if isinstance(lab, str) else f"{lab:g}"
 
     def set_time(self, t: float) -> None:
         """Scrub: the scene index moves to time code ``t`` (no reload)."""
