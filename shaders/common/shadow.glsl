@@ -368,11 +368,17 @@ vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft, vec2 u0)
 // Shift of the area-shadow point set (r2_point) for this pixel: a per-pixel hash, so a
 // penumbra's quantisation into AREA_SHADOW_POINTS levels is fine noise, not bands; with
 // AREA_SHADOW_PER_FRAME (STB's term pass, fewer points) also per frame, so accumulated
-// frames converge to the whole light's visibility.
+// frames converge to the whole light's visibility; with AREA_SHADOW_SEQUENCE (the exact
+// methods) per integrated frame (FrameContext.sample_index: 0 for a lone frame).
+#ifdef AREA_SHADOW_SEQUENCE
+uniform float u_area_shadow_index;
+#endif
 vec2 area_shadow_shift() {
     uvec2 q = uvec2(gl_FragCoord.xy);
     uint h = q.x * 1973u + q.y * 9277u + 0x68e31da4u;
-#ifdef AREA_SHADOW_PER_FRAME
+#if defined(AREA_SHADOW_SEQUENCE)
+    h += uint(u_area_shadow_index) * 26699u;
+#elif defined(AREA_SHADOW_PER_FRAME)
     h += uint(u_clip.z) * 26699u;
 #endif
     h ^= h >> 15; h *= 0x2c1b3c6du; h ^= h >> 12; h *= 0x297a2d39u; h ^= h >> 15;

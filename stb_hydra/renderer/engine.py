@@ -334,6 +334,7 @@ class Engine:
             frame_index=fidx,
             seed=(s.seed * 7919 + (fidx if seed is None else seed)) & 0xFFFFFFFF,
             final=final,
+            sample_index=fidx if s.temporal == "taa" else self.accumulate.count,
         )
         passes = self.graph.passes
         with timed(self.timings, "prepare", None, False):

@@ -92,9 +92,11 @@ class LightingMethod:
     #: The method's light loop has a point-only part: in-view lights are ordered point
     #: lights first and ``u_point_lights`` says how many (``InViewLights.point_count``).
     points_first: ClassVar[bool] = False
-    #: Area-light penumbrae rotate their point set per frame (``AREA_SHADOW_PER_FRAME``,
-    #: common/shadow.glsl), so ``--accumulate`` converges to the light's visibility: the
-    #: exact methods (frame 0 is the fixed set of a single frame).
+    #: Area-light penumbrae rotate their point set per integrated frame
+    #: (``AREA_SHADOW_PER_FRAME`` + ``AREA_SHADOW_SEQUENCE``, common/shadow.glsl; by
+    #: ``FrameContext.sample_index``), so ``--accumulate`` and taa converge to the
+    #: light's visibility while a lone real-time frame keeps the fixed set (no shimmer):
+    #: the exact methods.
     area_shadows_per_frame: ClassVar[bool] = False
 
     def __init__(
@@ -170,6 +172,7 @@ class LightingMethod:
                     defines["STOCHASTIC_PCF"] = True
                 if self.area_shadows_per_frame:
                     defines["AREA_SHADOW_PER_FRAME"] = True
+                    defines["AREA_SHADOW_SEQUENCE"] = True
         return defines
 
     def bind_common(self, frame: FrameContext, prog: moderngl.Program, first_unit: int = 0) -> int:
@@ -182,6 +185,8 @@ class LightingMethod:
                 tex[name].use(unit)
                 cast(moderngl.Uniform, prog[name]).value = unit
                 unit += 1
+        if "u_area_shadow_index" in prog:  # AREA_SHADOW_SEQUENCE (common/shadow.glsl)
+            set_uniform(prog, "u_area_shadow_index", float(frame.sample_index))
         if "u_point_lights" in prog:
             set_uniform(prog, "u_point_lights", frame.get(InViewLights).point_count)
         lb = frame.get(LightBuffer)
