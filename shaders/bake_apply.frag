@@ -1,5 +1,6 @@
-// Lightmap pass: baked direct light of static lights, added to g_emission (nits,
-// before exposure, like every light) where this fragment is the G-buffer's surface.
+// Lightmap pass: baked direct light of static lights, added to g_emission (nits, stored
+// times the exposure scale u_clip.w like all of g_emission) where this fragment is the
+// G-buffer's surface.
 // Diffuse: the reference's Lambert term with the baked irradiance. Specular: the GGX
 // lobes towards the two strongest baked lights (exact for them) plus the lobe towards
 // the other lights' mean direction, each times its baked irradiance (bake_light.frag).
@@ -50,6 +51,6 @@ void main() {
     c += baked_specular(s, texture(u_lightmap2, v_uv).xyz, max(texture(u_lightmap1, v_uv).rgb, vec3(0.0)));
     c += baked_specular(s, texture(u_lightmap4, v_uv).xyz, max(texture(u_lightmap3, v_uv).rgb, vec3(0.0)));
     c += baked_specular(s, texture(u_lightmap6, v_uv).xyz, max(texture(u_lightmap5, v_uv).rgb, vec3(0.0)));
-    o_emission = vec4(sanitize_radiance(c), 0.0);
+    o_emission = vec4(sanitize_radiance(c * u_clip.w), 0.0);  // g_emission is exposed
     o_mask = 1.0;
 }

@@ -32,5 +32,5 @@ void main() {
         brdf_eval(s, Ldir, d, sp);
         c += (d * L.misc.z + sp * L.misc.w) * E;
     }
-    o_emission = vec4(sanitize_radiance(c), 0.0);
+    o_emission = vec4(sanitize_radiance(c * u_clip.w), 0.0);  // g_emission is exposed
 }

@@ -1,5 +1,5 @@
 // G-buffer pass: linear depth, octahedral normal, base colour + roughness,
-// F0 + metallic, motion vectors (px), emission (nits) + occlusion.
+// F0 + metallic, motion vectors (px), emission (nits x exposure scale) + occlusion.
 // HAS_MATERIAL_TEXTURES: inputs from textures / primvars (common/material.glsl),
 // tangent-space normal mapping, opacity cut-outs (discard below the threshold).
 #include "common/frame.glsl"
@@ -24,7 +24,7 @@ layout(location = 1) out vec2 o_normal;
 layout(location = 2) out vec4 o_base_rough;
 layout(location = 3) out vec4 o_f0_metal;
 layout(location = 4) out vec2 o_motion;
-layout(location = 5) out vec4 o_emission;  // rgb emitted radiance (nits), a occlusion
+layout(location = 5) out vec4 o_emission;  // rgb emitted radiance (nits) x u_clip.w, a occlusion
 
 #ifdef HAS_MATERIAL_TEXTURES
 #include "common/material.glsl"
@@ -114,7 +114,7 @@ void main() {
     vec2 cur = v_clip.xy / v_clip.w;
     vec2 prev = v_prev_clip.xy / v_prev_clip.w;
     o_motion = (cur - prev) * 0.5 * u_resolution.xy;
-    o_emission = vec4(min(max(emissive, 0.0), vec3(LIM_HALF_MAX)), occlusion);
+    o_emission = vec4(min(max(emissive, 0.0) * u_clip.w, vec3(LIM_HALF_MAX)), occlusion);
 #ifdef HAS_LINKS
     o_link = u_link_group;
 #endif

@@ -13,7 +13,7 @@ uniform uint u_point_lights;  // the first u_point_lights lights have no extent
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
-    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    vec3 emission = surface_emission(px);
     if (!read_surface(px, s)) {
         write_background(px);
         return;

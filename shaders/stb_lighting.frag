@@ -41,7 +41,7 @@ float ris_target(Light L, Surface s) {
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
-    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    vec3 emission = surface_emission(px);
     if (!read_surface(px, s)) {
         write_background(px);
         return;

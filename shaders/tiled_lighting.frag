@@ -29,7 +29,7 @@ int depth_slice(float d) {
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
-    vec3 emission = texelFetch(g_emission, px, 0).rgb;
+    vec3 emission = surface_emission(px);
     if (!read_surface(px, s)) {
         write_background(px);
         return;

@@ -205,7 +205,14 @@ SHADOW_RES_HYSTERESIS_OCTAVES = 0.25
 #: half the influence radius the light is within 2 stops of LIGHT_CUTOFF_LUX, where
 #: shadow edges are invisible, so the inner disc (half the diameter) sets the density.
 SHADOW_TEXELS_PER_PIXEL = 0.5
-#: Flux (lm) that gets the plain projected size (~ a 75 W-equivalent household bulb).
+#: Flux (lm) that gets the plain projected size, as the camera sees it: the engine
+#: passes flux x the camera's exposure scale, like the influence ranges, so map sizes
+#: (hence the image) do not depend on the unit scale of the lights (issue 33): a
+#: 1000 lm (75 W-equivalent) bulb seen at exposure scale 1. Scenes exposed darker
+#: (the courtyard: -3 stops) get smaller maps than the absolute-flux rule gave them
+#: (its median 160 -> 48 texels; 125 lm would keep them, but grows exposure-0 maps
+#: to where the octahedral maps' grazing bias shows: tests/test_shadows_gl.py).
+#: Validation's estimate uses VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE.
 SHADOW_REFERENCE_FLUX_LM = 1000.0
 #: Clamp of the sqrt(flux / reference) size factor: +-2 octaves, so neither a
 #: candle nor a stadium light escapes the distance-driven size entirely.
@@ -271,6 +278,9 @@ VALIDATE_DYNAMIC_SHADOWS_PER_PREFAB_MAX = 2
 VALIDATE_SHADOW_REFERENCE_DISTANCE_M = 20.0
 VALIDATE_SHADOW_REFERENCE_HEIGHT_PX = 1080
 VALIDATE_SHADOW_REFERENCE_FOV_DEG = 60.0
+#: Camera exposure scale of that reference view, by which the estimate
+#: multiplies a light's flux as the renderer does (SHADOW_REFERENCE_FLUX_LM).
+VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE = 1.0
 #: Largest estimated atlas share of one prefab at the reference view: a quarter of the
 #: default atlas (4 maps at SHADOW_MAP_MAX_SIZE), so four such prefabs fill it.
 VALIDATE_PREFAB_ATLAS_FRACTION_MAX = 0.25

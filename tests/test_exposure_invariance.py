@@ -100,3 +100,60 @@ def test_ranges_grow_with_the_square_root_of_the_exposure():
         ),
     )
     np.testing.assert_allclose(influence_range(peak * 1e-3, 1000.0), r1, rtol=1e-12)
+
+
+# --- Every light x 1e-6 and x 1e+6 on the courtyard (issue 33 item 1) ------------------
+
+COURTYARD = "usd_scenes/default.usda"
+METHODS = ("reference", "sun", "tiled", "clustered", "lighttree", "stb")
+
+
+def scaled_courtyard(repo, k: float):
+    """The courtyard flattened (instanceable prefabs made plain, so their lamps can be
+    edited) with every light's intensity and every emissive colour times ``k`` and
+    the camera exposure lowered by log2(k) stops: the same picture in other units."""
+    from pxr import Usd, UsdGeom, UsdLux, UsdShade
+
+    st = Usd.Stage.Open(Usd.Stage.Open(str(repo / COURTYARD)).Flatten())
+    for p in list(st.Traverse()):
+        if p.IsInstanceable():
+            p.SetInstanceable(False)
+    lights = 0
+    for p in st.Traverse():
+        if p.HasAPI(UsdLux.LightAPI):
+            a = p.GetAttribute("inputs:intensity")
+            if not a.HasAuthoredValue():
+                a.Set(1.0)
+            for t in a.GetTimeSamples() or [Usd.TimeCode.Default()]:
+                a.Set(a.Get(t) * k, t)
+            lights += 1
+        elif p.IsA(UsdShade.Shader):
+            a = p.GetAttribute("inputs:emissiveColor")
+            if a and a.HasAuthoredValue():
+                a.Set(a.Get() * k)
+        elif p.IsA(UsdGeom.Camera):
+            e = p.GetAttribute("exposure")
+            e.Set(float(e.Get() or 0.0) - math.log2(k))
+    assert lights >= 20, "the courtyard's lights were not found"
+    return st
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("temporal", ["still", "taa"])
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_is_scale_free_over_twelve_decades(repo, method: str, temporal: str):
+    """Shadow-map sizes (a flux factor in lumens) and the fp16 emission G-buffer
+    (emissive lamps overflowed at x1e6) depended on absolute radiance: display relMSE
+    0.013 (reference) and 0.36 (STB) at x1e-6 before."""
+    import stb_hydra.api as api
+
+    kw: dict = dict(width=64, height=36, lighting=method, seed=3)
+    if temporal == "taa":
+        kw.update(accumulate=3, temporal="taa")
+    base = api.render(scaled_courtyard(repo, 1.0), **kw)
+    assert float(base.mean()) > 0.005
+    for k in (1e-6, 1e6):
+        img = api.render(scaled_courtyard(repo, k), **kw)
+        assert np.all(np.isfinite(img))
+        err = relmse(display_referred(img), display_referred(base))
+        assert err <= 1e-3, f"{method} {temporal} x{k:g}: relMSE {err:.3g}"

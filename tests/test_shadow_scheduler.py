@@ -12,6 +12,7 @@ from stb_hydra.limits import (
     SHADOW_MAP_MAX_SIZE,
     SHADOW_MAP_MIN_SIZE,
     SHADOW_OUT_OF_VIEW_PRIORITY_SCALE,
+    SHADOW_REFERENCE_FLUX_LM,
     SHADOW_RES_HYSTERESIS_OCTAVES,
 )
 from stb_hydra.shadows import policy
@@ -378,7 +379,7 @@ def test_policy_vectorised_and_clamped() -> None:
     for i in range(0, n, 1999):
         d_eff = max(dist[i], rng_m[i])
         px = 1080 * rng_m[i] / (d_eff * math.tan(math.radians(30)))
-        scale = min(max(math.sqrt(flux[i] / 1000.0), 0.25), 4.0)
+        scale = min(max(math.sqrt(flux[i] / SHADOW_REFERENCE_FLUX_LM), 0.25), 4.0)
         assert t[i] == pytest.approx(px * 0.5 * scale)
     # farther -> not larger; brighter -> not smaller
     t2 = policy.target_texels(dist * 2, flux, rng_m, 1080, math.radians(60))

@@ -6,6 +6,7 @@ against these EXRs by ``tests/test_regression_images.py``: every image must matc
 with relMSE <= 1e-6, STB with the same seed bit for bit.
 
     python tools/make_regression_images.py            # (re)writes tests/data/regression/
+    python tools/make_regression_images.py --images   # images only, the stages kept
 
 Scenes (stage files are written next to the images, so the test does not depend on
 the generators staying byte-identical): the default courtyard (usd_scenes), a
@@ -47,7 +48,8 @@ def main() -> int:
     sys.path.insert(0, str(ROOT / "tests"))
     from test_regression_images import CASES, render_case
 
-    write_scenes()
+    if "--images" not in sys.argv[1:]:
+        write_scenes()
     index = {}
     for case in CASES:
         img = render_case(case)

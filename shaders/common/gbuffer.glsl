@@ -9,7 +9,9 @@ uniform sampler2D g_depth;      // r32f linear view depth (m), 0 = background
 uniform sampler2D g_normal;     // rg16f octahedral world normal
 uniform sampler2D g_base_rough; // rgba16f base colour, roughness
 uniform sampler2D g_f0_metal;   // rgba16f F0, metallic
-uniform sampler2D g_emission;   // rgba16f rgb emitted radiance (nits), a occlusion
+uniform sampler2D g_emission;   // rgba16f rgb emitted radiance x exposure scale u_clip.w
+                                // (display-relative, so fp16 holds it at any light
+                                // scale: surface_emission), a occlusion
 #ifdef HAS_CLEARCOAT
 uniform sampler2D g_coat;       // rg16f clearcoat weight, clearcoat roughness
 #endif
@@ -52,5 +54,10 @@ bool read_surface(ivec2 px, out Surface s) {
     s.coat_alpha = 1.0;
 #endif
     return true;
+}
+
+// Emitted radiance of pixel px (nits; g_emission holds it times the exposure scale).
+vec3 surface_emission(ivec2 px) {
+    return texelFetch(g_emission, px, 0).rgb / u_clip.w;
 }
 #endif

@@ -7,7 +7,8 @@ Heuristic: the light's influence sphere (radius ``range_m``) seen from the camer
 pixels (small-angle projection; d is floored at r, i.e. a camera inside the sphere
 sees it fill the screen). The continuous target side is that diameter times
 ``SHADOW_TEXELS_PER_PIXEL`` times ``sqrt(flux / SHADOW_REFERENCE_FLUX_LM)`` (clamped
-to ``SHADOW_FLUX_SCALE_RANGE``), in texels.
+to ``SHADOW_FLUX_SCALE_RANGE``), in texels. The renderer passes the flux times the
+camera's exposure scale (the flux as the camera sees it), so sizes are scale-free.
 
 Sizes: nearest power of two in log2 (``2^floor(log2 t + 0.5)``) clamped to
 [min_size, max_size]; a light keeps its current size while log2(target) stays within

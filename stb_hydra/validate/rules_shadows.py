@@ -5,8 +5,8 @@ Atlas estimate (the engine's resolution heuristic at a fixed reference view): a 
 of influence radius r seen from d = VALIDATE_SHADOW_REFERENCE_DISTANCE_M (floored at
 r: a camera inside the sphere sees it fill the screen) covers
 ``H * r / (d * tan(fov/2))`` pixels of a H = 1080 px, 60-degree view; its map side is
-that diameter times SHADOW_TEXELS_PER_PIXEL times sqrt(flux / SHADOW_REFERENCE_FLUX_LM)
-(clamped to SHADOW_FLUX_SCALE_RANGE), rounded to a power of two in
+that diameter times SHADOW_TEXELS_PER_PIXEL times sqrt(flux x
+VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE / SHADOW_REFERENCE_FLUX_LM) (clamped to SHADOW_FLUX_SCALE_RANGE), rounded to a power of two in
 [SHADOW_MAP_MIN_SIZE, SHADOW_MAP_MAX_SIZE]. The prefab's area is the sum of side^2.
 """
 
@@ -29,7 +29,7 @@ def map_side(range_m: float, flux_lm: float) -> int:
     resolution policy for a light seen from the reference distance, no map yet."""
     side = policy.choose_resolutions(
         [limits.VALIDATE_SHADOW_REFERENCE_DISTANCE_M],
-        [flux_lm],
+        [flux_lm * limits.VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE],
         [range_m],
         limits.VALIDATE_SHADOW_REFERENCE_HEIGHT_PX,
         math.radians(limits.VALIDATE_SHADOW_REFERENCE_FOV_DEG),

@@ -301,7 +301,9 @@ class ShadowAtlasTask(Pass):
         self.scheduler.update_lights(
             keys,
             distance_m=np.linalg.norm(pos - frame.view.position, axis=1),
-            flux_lm=t.cols["flux"][rr].astype(np.float64),
+            # Flux as the camera sees it (lm x exposure scale), like the ranges: the
+            # map sizes, hence the display image, do not depend on the unit scale.
+            flux_lm=t.cols["flux"][rr].astype(np.float64) * float(frame.view.exposure_scale),
             range_m=t.cols["range"][rr].astype(np.float64),
             viewport_height_px=float(frame.view.height),
             fov_y_rad=2.0 * float(np.arctan(frame.view.tan_half[1])),
