@@ -164,3 +164,23 @@ def test_render_cli_taa_filter(tmp_path, repo):
     r = subprocess.run(bad, capture_output=True, text=True, timeout=300)
     assert r.returncode == 2
     assert "taa_filter must be 0..5" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_render_cli_says_taa_filter_without_taa(tmp_path, repo, capsys):
+    """``--taa-filter`` on a still camera (``--temporal auto`` resolves to accumulate)
+    or with an explicit non-taa mode is one warning, not a silently ignored option;
+    with a moving camera it applies and nothing is said."""
+    from stb_hydra.apps import cli
+
+    scene = str(repo / "usd_scenes" / "default.usda")
+    argv = ["render", scene, str(tmp_path / "f.exr"), "--width", "32", "--taa-filter", "2"]
+    assert cli.main([*argv, "--lighting", "sun"]) == 0
+    err = capsys.readouterr()
+    text = err.out + err.err
+    assert "--taa-filter 2" in text and "does not move" in text and "not applied" in text
+    assert cli.main([*argv, "--lighting", "sun", "--temporal", "off"]) == 0
+    err = capsys.readouterr()
+    assert "--temporal is off" in err.out + err.err
+    assert cli.main([*argv, "--lighting", "sun", "--temporal", "taa"]) == 0
+    err = capsys.readouterr()
+    assert "--taa-filter" not in err.out + err.err

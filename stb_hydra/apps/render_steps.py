@@ -39,15 +39,27 @@ def parse_frames(spec: str) -> list[float]:
 
 def _resolve_temporal(args: argparse.Namespace, stage, eng, frames, rep: Reporter) -> None:
     """``--temporal auto``: taa when the rendered camera moves over the frames (its world
-    transform or lens changes), else accumulate (the engine was built with accumulate)."""
-    if args.temporal != "auto":
-        return
-    from ..scene.cameras import camera_moves
+    transform or lens changes), else accumulate (the engine was built with accumulate).
+    ``--taa-filter`` without taa is said, not silently dropped."""
+    if args.temporal == "auto":
+        from ..scene.cameras import camera_moves
 
-    if camera_moves(stage, eng.camera_path, frames):
-        eng.set_temporal("taa")
-        if args.verbose:
-            rep.say(f"stb render: the camera {eng.camera_path} moves: --temporal taa")
+        if camera_moves(stage, eng.camera_path, frames):
+            eng.set_temporal("taa")
+            if args.verbose:
+                rep.say(f"stb render: the camera {eng.camera_path} moves: --temporal taa")
+    levels = int(getattr(args, "taa_filter", 0) or 0)
+    if levels > 0 and eng.settings.temporal != "taa":
+        why = (
+            f"the camera {eng.camera_path} does not move over the frames, so --temporal "
+            "auto chose accumulate"
+            if args.temporal == "auto"
+            else f"--temporal is {args.temporal}"
+        )
+        rep.warn(
+            f"--taa-filter {levels} filters the taa pass only and is not applied: {why} "
+            "(pass --temporal taa to filter these frames)"
+        )
 
 
 def _check_settings(args: argparse.Namespace) -> list[str]:
