@@ -309,3 +309,35 @@ def test_units_tolerance(tmp_path, selection, ref_mpu, reported):
     )
     got = findings(tmp_path, selection, root, "root.usda")
     assert (("units_mismatch", "/World") in got) == reported
+
+
+@pytest.mark.parametrize("exposure", [None, -4.0, -8.0])
+def test_static_light_reach_follows_the_camera_exposure(tmp_path, selection, exposure):
+    """``static_light_dynamic_geometry`` uses the range the renderer and the bake use:
+    the automatic range sqrt(I e / cutoff) at the stage camera's exposure e (I =
+    L pi r^2 for a sphere light), not at exposure 1."""
+    peak_cd = CLEAN_NITS * math.pi * R * R
+    e = 1.0 if exposure is None else 2.0**exposure
+    reach = math.sqrt(peak_cd * e / limits.LIGHT_CUTOFF_LUX)
+    gap = 5.0  # from the light to the nearest point of the crate
+    lamp = (
+        '    def SphereLight "Lamp"\n    {\n'
+        f"        float inputs:intensity = {CLEAN_NITS!r}\n        float inputs:radius = {R}\n"
+        '        bool inputs:shadow:enable = 0\n        uniform token stb:mobility = "static"\n'
+        "        double3 xformOp:translate = (0, 1.5, 0)\n"
+        '        uniform token[] xformOpOrder = ["xformOp:translate"]\n    }\n'
+        '    def Cube "Crate" (\n        prepend apiSchemas = ["StbGeometryAPI"]\n    )\n    {\n'
+        "        double size = 1\n        uniform bool stb:dynamic = 1\n"
+        f"        double3 xformOp:translate = ({gap + 0.5}, 1.5, 0)\n"
+        '        uniform token[] xformOpOrder = ["xformOp:translate"]\n    }\n'
+    )
+    cam = (
+        'def Camera "Cam"\n{\n'
+        f"    float exposure = {exposure!r}\n"
+        "    double3 xformOp:translate = (0, 3, 12)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+        if exposure is not None
+        else ""
+    )
+    got = findings(tmp_path, selection, prefab([lamp], extra_root=cam))
+    assert (("static_light_dynamic_geometry", L("Lamp")) in got) == (reach > gap), reach

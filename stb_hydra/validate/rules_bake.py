@@ -1,8 +1,10 @@
 """``StaticBake`` (stage validator): static lights and baked lightmaps (``stb bake``).
 
 * ``static_light_dynamic_geometry`` -- a light marked ``stb:mobility = "static"``
-  whose influence sphere (its range at exposure 1) meets the bounds of dynamic
-  geometry: once baked, that geometry gets the light unshadowed (docs/BAKE.md).
+  whose influence sphere meets the bounds of dynamic geometry: once baked, that
+  geometry gets the light unshadowed (docs/BAKE.md). The range is the one the
+  renderer and ``stb bake`` use: authored ``stb:range``, else the automatic range at
+  the exposure of the stage's first camera (exposure 1 without a camera).
 * ``lightmap_density`` -- a baked mesh whose ``stb:lightmap:texelDensity`` is under
   ``limits.VALIDATE_LIGHTMAP_TEXEL_DENSITY_MIN``.
 * ``bake_stale`` -- the stage has a bake record (``customLayerData["stb:bake"]`` in
@@ -13,10 +15,12 @@
 from __future__ import annotations
 
 import numpy as np
-from pxr import Usd
+from pxr import Usd, UsdGeom
 
 from .. import limits
 from ..scene import prims
+from ..scene.cameras import exposure_scale
+from ..scene.lights import influence_range
 from .analysis import analysis_for
 from .common import finding
 from .findings import Finding
@@ -47,10 +51,14 @@ def _dynamic_overlap(stage: Usd.Stage) -> list[Finding]:
         w = w[np.all(np.isfinite(w), axis=1)]
         if len(w):
             boxes.append((m.path, w.min(axis=0), w.max(axis=0)))
+    exposure, cam = _camera_exposure(stage)
+    at = f" at the exposure of <{cam}>" if cam else ""
     out: list[Finding] = []
     for r in static:
         c = np.asarray(r.light.position, dtype=np.float64)
         rad = float(r.light.range)
+        if not r.light.range_authored and np.isfinite(rad):
+            rad = float(influence_range(np.asarray([r.light.peak_intensity]), exposure)[0])
         hit = [path for path, lo, hi in boxes if np.linalg.norm(np.clip(c, lo, hi) - c) < rad]
         if hit:
             more = f" and {len(hit) - 1} more" if len(hit) > 1 else ""
@@ -58,11 +66,20 @@ def _dynamic_overlap(stage: Usd.Stage) -> list[Finding]:
                 finding(
                     "static_light_dynamic_geometry",
                     r.prim_path,
-                    f"static light's influence ({rad:.3g} m) reaches dynamic geometry "
+                    f"static light's influence ({rad:.3g} m{at}) reaches dynamic geometry "
                     f"<{hit[0]}>{more}",
                 )
             )
     return out
+
+
+def _camera_exposure(stage: Usd.Stage) -> tuple[float, str | None]:
+    """Linear exposure scale of the stage's first camera (the one ``stb render`` and
+    ``stb bake`` use by default) and its path; (1, None) without a camera."""
+    for prim in stage.Traverse():
+        if prim.IsA(UsdGeom.Camera):
+            return exposure_scale(prim, Usd.TimeCode.EarliestTime()), str(prim.GetPath())
+    return 1.0, None
 
 
 def _density(stage: Usd.Stage) -> list[Finding]:
