@@ -127,6 +127,31 @@ def test_frames_and_skip_existing(scene: Path, tmp_path: Path):
     assert (tmp_path / "f.0002.exr").stat().st_mtime_ns == mtime
 
 
+@pytest.mark.parametrize("temporal", ["accumulate", "taa"])
+def test_skip_existing_resumes_like_a_full_run(scene: Path, tmp_path: Path, temporal: str):
+    """A resumed run (frame 2 exists) writes frames 1 and 3 exactly as a full run does:
+    the same seeds (the skipped frame's are counted) and, under taa, the same history
+    (the existing frame is rendered again, not written). STB: every pixel depends on
+    the seed."""
+    from stb_hydra.apps import cli
+
+    full, part = tmp_path / "full", tmp_path / "part"
+    full.mkdir()
+    part.mkdir()
+    argv = ["--width", "48", "--frames", "1:3", "--lighting", "stb", "--temporal", temporal]
+    argv += ["--accumulate", "2", "--quiet"]
+    assert cli.main(["render", str(scene), str(full / "f.####.exr"), *argv]) == 0
+    (part / "f.0002.exr").write_bytes((full / "f.0002.exr").read_bytes())
+    mtime = (part / "f.0002.exr").stat().st_mtime_ns
+    args = ["render", str(scene), str(part / "f.####.exr"), *argv, "--skip-existing"]
+    assert cli.main(args) == 0
+    assert (part / "f.0002.exr").stat().st_mtime_ns == mtime  # not rewritten
+    for name in ("f.0001.exr", "f.0003.exr"):
+        a, _ = read_image(full / name)
+        b, _ = read_image(part / name)
+        np.testing.assert_array_equal(b, a, err_msg=f"{temporal}: {name} differs")
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [

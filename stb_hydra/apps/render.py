@@ -94,7 +94,13 @@ def add_parser(sub) -> None:
         "(written beside OUTPUT as .png; lightcount also as .exr counts)",
     )
     p.add_argument("--stats", help="write per-frame timings and counts to this JSON file")
-    p.add_argument("--skip-existing", action="store_true", help="skip frames whose file exists")
+    p.add_argument(
+        "--skip-existing",
+        action="store_true",
+        help="skip frames whose file exists; the others come out as in a full run (same "
+        "seeds; with taa, existing frames before a missing one are rendered again, not "
+        "written, for the history)",
+    )
     p.add_argument("--ambient", type=float, default=0.0, help="extra uniform ambient (nits)")
     p.add_argument(
         "--option",
@@ -207,6 +213,14 @@ def _run(args: argparse.Namespace, rep: Reporter) -> int:
     return _finish(args, stats, written, rep)
 
 
+def _frame_output(output: str, fr: float | None) -> str:
+    """The file of frame ``fr`` (one frame may be written to a plain OUTPUT, no ####)."""
+    from ..io.images import frame_path, has_frame_placeholder
+
+    numbered = fr is not None and has_frame_placeholder(output)
+    return frame_path(output, fr) if numbered else output
+
+
 class _Progress:
     """The progress bar (stderr, a terminal only; none with ``--quiet``): accumulated
     samples of all frames, with the frame and the shadow maps captured so far."""
@@ -269,21 +283,32 @@ def _render_frames(
 ) -> int:
     """Render and write every frame (``stats["frames"]``, then ``stats["warnings"]``);
     releases the engine. Returns the number of frames written."""
-    from ..io.images import ImageWriteError, frame_path, has_frame_placeholder
+    from ..io.images import ImageWriteError
     from ..renderer.engine import RenderError
 
     samples = max(1, int(eng.settings.accumulate))
     progress = _Progress(eng, len(frames), samples, rep)
     written = 0
     skipped: list[str] = []
+    outs = [_frame_output(args.output, fr) for fr in frames]
+    exists = [bool(args.skip_existing) and os.path.exists(o) for o in outs]
+    # A skipped frame still feeds the taa history of the frames after it (rendered, not
+    # written); in history-free modes its seeds are only counted (Engine.skip_frames).
+    last_todo = max((i for i, e in enumerate(exists) if not e), default=-1)
+    history = eng.settings.temporal == "taa"
+    rerendered = 0
     try:
         for i, fr in enumerate(frames):
-            # one frame may be written to a plain OUTPUT (no ####)
-            numbered = fr is not None and has_frame_placeholder(args.output)
-            out = frame_path(args.output, fr) if numbered else args.output
-            if args.skip_existing and os.path.exists(out):
+            out = outs[i]
+            if exists[i]:
                 skipped.append(out)
-                progress.skip(samples)
+                if history and i < last_todo:
+                    eng.render(fr)
+                    rerendered += 1
+                    progress.skip(0)
+                else:
+                    eng.skip_frames(samples)
+                    progress.skip(samples)
                 continue
             progress.start_frame(i)
             t0 = _time.perf_counter()
@@ -306,5 +331,10 @@ def _render_frames(
         eng.release()
     if skipped:
         _say_skipped(rep, skipped, len(frames))
+    if rerendered:
+        rep.say(
+            f"stb render: {rerendered} existing frame(s) rendered again, not written: "
+            "the taa history of the frames after them needs them"
+        )
     stats["warnings"] = list(rep.lines)
     return written

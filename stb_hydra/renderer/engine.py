@@ -302,6 +302,13 @@ class Engine:
             self._seen_warnings.add(msg)
             self.warnings.append(msg)
 
+    def skip_frames(self, n: int) -> None:
+        """Advance the frame counter as if ``n`` frames had been rendered (their seeds
+        and jitter phases are used up), so a resumed sequence (``stb render
+        --skip-existing``) renders the frames after the skipped ones as a full run
+        does. History-free modes only: a taa history needs the frames themselves."""
+        self.frame_index += max(0, int(n))
+
     def render_frame(
         self, time: float | None = None, seed: int | None = None, final: bool = True
     ) -> FrameContext:
