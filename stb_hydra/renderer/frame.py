@@ -348,8 +348,9 @@ class FrameContext:
     final: bool = True
     #: This frame's place in the frames being integrated: the frames averaged before
     #: it (``Engine.render``'s accumulation or a previewer's still-camera running
-    #: average; 0 for a lone frame), the frame index under ``temporal="taa"``. Exact methods rotate their area-shadow point sets by it, so
-    #: integrated frames converge and a lone real-time frame is the fixed set.
+    #: average; 0 for a lone frame), the frame index under ``temporal="taa"``. Exact
+    #: methods rotate their area-shadow point sets by it, so integrated frames
+    #: converge and a lone real-time frame is the fixed set.
     sample_index: int = 0
     records: dict[type, object] = field(default_factory=dict)
     #: Warnings about the user's scene raised by passes (the engine deduplicates).

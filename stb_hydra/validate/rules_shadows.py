@@ -6,8 +6,9 @@ of influence radius r seen from d = VALIDATE_SHADOW_REFERENCE_DISTANCE_M (floore
 r: a camera inside the sphere sees it fill the screen) covers
 ``H * r / (d * tan(fov/2))`` pixels of a H = 1080 px, 60-degree view; its map side is
 that diameter times SHADOW_TEXELS_PER_PIXEL times sqrt(flux x
-VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE / SHADOW_REFERENCE_FLUX_LM) (clamped to SHADOW_FLUX_SCALE_RANGE), rounded to a power of two in
-[SHADOW_MAP_MIN_SIZE, SHADOW_MAP_MAX_SIZE]. The prefab's area is the sum of side^2.
+VALIDATE_SHADOW_REFERENCE_EXPOSURE_SCALE / SHADOW_REFERENCE_FLUX_LM) (clamped to
+SHADOW_FLUX_SCALE_RANGE), rounded to a power of two in [SHADOW_MAP_MIN_SIZE,
+SHADOW_MAP_MAX_SIZE]. The prefab's area is the sum of side^2.
 """
 
 from __future__ import annotations
