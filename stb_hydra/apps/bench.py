@@ -603,6 +603,7 @@ CSV_FIELDS = (
     "gpu_ms",
     "cpu_ms",
     "cull_upload_ms",
+    "accounted_fraction",
     "load_avg",
 )
 

@@ -55,10 +55,16 @@ class Measurement:
 
     def summary(self) -> dict[str, Any]:
         """Medians: ``frame_ms``, ``frame_ms_min/max``, ``passes``, ``gpu_ms``,
-        ``cpu_ms``, ``cull_upload_ms``, ``timings`` (all ms)."""
+        ``cpu_ms``, ``cull_upload_ms``, ``timings`` (all ms), and
+        ``accounted_fraction``: the timed passes plus the CPU phases (sync, commit,
+        prepare) over the frame time -- near 1 when every cost is timed; far from it,
+        a pass is untimed or the machine was loaded (a benchmark figure, not a test)."""
         passes = median_dict(self.passes)
         timings = median_dict(self.timings)
         cpu = [f - sum(p.values()) for f, p in zip(self.frame, self.passes)]
+        frame = median(self.frame)
+        phases = sum(timings.get(k, 0.0) for k in CPU_PREFIXES)
+        accounted = (sum(passes.values()) + phases) / frame if frame > 0 else 0.0
         return {
             "frame_ms": _r(median(self.frame)),
             "frame_ms_min": _r(min(self.frame, default=0.0)),
@@ -66,6 +72,7 @@ class Measurement:
             "gpu_ms": _r(sum(passes.values())),
             "cpu_ms": _r(median(cpu)),
             "cull_upload_ms": _r(sum(timings.get(k, 0.0) for k in CULL_UPLOAD_KEYS)),
+            "accounted_fraction": _r(accounted),
             "passes": {k: _r(v) for k, v in passes.items()},
             "timings": {k: _r(v) for k, v in timings.items()},
         }
