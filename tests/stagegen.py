@@ -82,6 +82,14 @@ USDA_HEADER = """#usda 1.0
 """
 
 
+def usda_header(start: float, end: float) -> str:
+    """``USDA_HEADER`` with a start and end time code."""
+    return (
+        '#usda 1.0\n(\n    metersPerUnit = 1\n    upAxis = "Y"\n'
+        f"    startTimeCode = {start:g}\n    endTimeCode = {end:g}\n)\n"
+    )
+
+
 def camera_usda(
     translate: tuple[float, float, float],
     rotate_x: float,

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+from stagegen import BOX_USDA, camera_usda, ground_usda, usda_header
 
 ray = pytest.importorskip("ray", reason="the ray extra (make test installs it)")
 
@@ -26,35 +27,12 @@ from stb_hydra.distributed import render as dist_render  # noqa: E402
 pytestmark = pytest.mark.slow
 
 # 64x36, 8 frames; two lights move (time samples) so every frame differs.
-SCENE = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-    startTimeCode = 1
-    endTimeCode = 8
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    double3 xformOp:translate = (0, 6, 14)
-    float xformOp:rotateX = -22
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-20, 0, -20), (-20, 0, 20), (20, 0, 20), (20, 0, -20)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
-def Cube "Box"
-{
-    double size = 2
-    double3 xformOp:translate = (0, 1, 0)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-}
+SCENE = (
+    usda_header(1, 8)
+    + camera_usda((0, 6, 14), -22)
+    + ground_usda(20)
+    + BOX_USDA
+    + """\
 def SphereLight "Lamp"
 {
     float inputs:intensity = 300
@@ -70,6 +48,7 @@ def SphereLight "Lamp2"
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }
 """
+)
 
 # stochastic lighting with two samples per frame: the seeds must follow the frame
 RENDER = ["--frames", "1:8", "--width", "64", "--height", "36", "--lighting", "stb"]

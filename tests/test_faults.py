@@ -21,34 +21,17 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 import pytest
+from stagegen import camera_usda, ground_usda, usda_header
 
 REPO = Path(__file__).resolve().parent.parent
 
 #: The light is off on frames 1-2 (black frames: ~1.4 KB EXRs at 64x36) and on from
 #: 2.5 (~3.6 KB): a 2500-byte file-size limit lets frames 1-2 through and fails frame 3.
-ANIM_USDA = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-    startTimeCode = 1
-    endTimeCode = 400
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    double3 xformOp:translate = (0, 3, 8)
-    float xformOp:rotateX = -20
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-10, 0, -10), (-10, 0, 10), (10, 0, 10), (10, 0, -10)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
+ANIM_USDA = (
+    usda_header(1, 400)
+    + camera_usda((0, 3, 8), -20)
+    + ground_usda(10)
+    + """\
 def SphereLight "L"
 {
     float inputs:intensity.timeSamples = {1: 0, 2: 0, 2.5: 3000, 400: 3000}
@@ -57,6 +40,7 @@ def SphereLight "L"
     uniform token[] xformOpOrder = ["xformOp:translate"]
 }
 """
+)
 
 
 def _env() -> dict[str, str]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdLux
+from stagegen import USDA_HEADER, camera_usda
 
 from stb_hydra import limits
 from stb_hydra.renderer.engine import Engine
@@ -70,22 +71,7 @@ def SphereLight "{name}"
 }}'''
 
 
-HEADER = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.1, 100)
-    double3 xformOp:translate = (0, 5, 0)
-    float xformOp:rotateX = -90
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-"""
+HEADER = USDA_HEADER + camera_usda((0, 5, 0), -90, clipping=(0.1, 100))
 
 
 def two_quads(a: str | None = "", *, b: bool = True, extra: str = "") -> Usd.Stage:

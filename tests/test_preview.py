@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from stagegen import USDA_HEADER, camera_usda, ground_usda
 
 from stb_hydra.preview.camera import OrbitCamera
 from stb_hydra.preview.script import ScriptError, load_script, parse_events
@@ -20,28 +21,11 @@ W, H = 128, 72
 
 #: A grey floor, a 1 m box, a warm light on the left and a cool one on the right
 #: (x = -3 and +3), seen by /Cam from above and in front.
-TWO_LIGHTS_USDA = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.1, 100)
-    double3 xformOp:translate = (0, 6, 6)
-    float xformOp:rotateX = -45
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}
-def Mesh "Ground"
-{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-10, 0, -10), (-10, 0, 10), (10, 0, 10), (10, 0, -10)]
-    color3f[] primvars:displayColor = [(0.5, 0.5, 0.5)]
-}
+TWO_LIGHTS_USDA = (
+    USDA_HEADER
+    + camera_usda((0, 6, 6), -45, clipping=(0.1, 100))
+    + ground_usda(10)
+    + """\
 def Cube "Box"
 {
     double size = 1
@@ -68,6 +52,7 @@ def Xform "Lights"
     }
 }
 """
+)
 
 
 def _project(cam: CameraPrim, p: np.ndarray, w: int = W, h: int = H) -> np.ndarray:
