@@ -398,6 +398,22 @@ STB_TERM_SHARE_REL_DISTANCE = 0.15
 #: and dropped. Measured in docs/STB_NOTES.md (issue 13, fourth pass).
 STB_RIS_PDF_FLOOR = 0.25
 
+# --- STB reservoir reuse (issue 31, ``-o reuse=on``) -----------------------------------
+#: History confidence cap of the temporal reuse, in frames' worth of candidates (M of
+#: the previous reservoir is clamped to this before it is combined): bounds how long
+#: the history can outvote a changed light (ReSTIR's usual 20).
+STB_REUSE_M_CAP = 20.0
+#: Spatial neighbours per pixel (``-o reuse_k``), at most (shader arrays are sized by it).
+STB_REUSE_K_MAX = 8
+#: Spatial reuse radius (px) by default (``-o reuse_radius``): about one interleaved
+#: footprint, so the neighbours come from other small tiles than the pixel's own.
+STB_REUSE_RADIUS_PX = 24.0
+#: Same-surface tests of the reuse (temporal and spatial): relative linear-depth
+#: difference, cosine between the normals, roughness difference.
+STB_REUSE_DEPTH_REL = 0.1
+STB_REUSE_NORMAL_COS = 0.9
+STB_REUSE_ROUGHNESS_DIFF = 0.25
+
 # --- STB big-tile target ("shaped") --------------------------------------------------
 
 #: Lower bound of the emission x cone x IES factor in the shaped big-tile target: the

@@ -49,12 +49,19 @@ SSBO_STB_CLUSTER_RECORDS = 7
 #: Light linking (``LightBuffer.link_ssbo``, common/links.glsl): the distant lights'
 #: masks, ambient per link group, then one mask per in-view light (light-buffer order).
 SSBO_LIGHT_LINKS = 8
+#: STB reuse (``-o reuse=on``): previous frame's FoV light index -> this frame's (int,
+#: -1 = no longer in view), bound only when the FoV list changed.
+SSBO_STB_REUSE_REMAP = 9
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
 IMAGE_UNIT_PIXEL_TERMS = 1
 #: Image unit of STB's big-tile reservoirs written by stb_bigtile_clusters.comp.
 IMAGE_UNIT_BIGTILE = 2
+#: STB reuse: the reservoir history and its surface (depth, normal, roughness) written
+#: by the shading pass for the next frame.
+IMAGE_UNIT_REUSE_RESERVOIR = 3
+IMAGE_UNIT_REUSE_SURFACE = 4
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
 #: ``LightingMethod.bind_common`` hands out from 0 (at most 10: G-buffer and its link
@@ -171,6 +178,10 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIG_TILE_SLOTS_MAX": str(max(limits.BIG_TILE_SLOTS_ALLOWED)),
         "LIM_TERM_SHARE_REL_DISTANCE": f"{limits.STB_TERM_SHARE_REL_DISTANCE:.6f}",
         "LIM_RIS_PDF_FLOOR": f"{limits.STB_RIS_PDF_FLOOR:.6f}",
+        "LIM_REUSE_K_MAX": str(limits.STB_REUSE_K_MAX),
+        "LIM_REUSE_DEPTH_REL": f"{limits.STB_REUSE_DEPTH_REL:.6f}",
+        "LIM_REUSE_NORMAL_COS": f"{limits.STB_REUSE_NORMAL_COS:.6f}",
+        "LIM_REUSE_ROUGHNESS_DIFF": f"{limits.STB_REUSE_ROUGHNESS_DIFF:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
@@ -210,9 +221,12 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
         "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
+        "SSBO_STB_REUSE_REMAP": str(SSBO_STB_REUSE_REMAP),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),
+        "IMAGE_UNIT_REUSE_RESERVOIR": str(IMAGE_UNIT_REUSE_RESERVOIR),
+        "IMAGE_UNIT_REUSE_SURFACE": str(IMAGE_UNIT_REUSE_SURFACE),
         "TEX_UNIT_HIZ": str(TEX_UNIT_HIZ),
         # codes and sentinels
         "PI": repr(math.pi),

@@ -64,6 +64,7 @@ from .base import LightingMethod, Warn, program
 from .light_clusters import LightClusters, build_clusters
 from .options import Opt, OptionError, Schema
 from .quad_patterns import QuadPatterns, fixed_pattern, pattern_bank
+from .stb_reuse import ReuseStage, reuse_textures
 from .tiled import SSBOPool
 
 if TYPE_CHECKING:
@@ -152,6 +153,52 @@ OPTIONS = Schema(
         "a two-level light hierarchy (cost ~ n/256 + 32K per tile); auto: clusters above "
         "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights",
     ),
+    Opt(
+        "reuse",
+        bool,
+        False,
+        doc="per-pixel reservoirs resampled from the small tile's samples, reused over "
+        "frames and neighbours (ReSTIR-style, issue 31; replaces the term and lighting "
+        "passes, see lighting/stb_reuse.py)",
+    ),
+    Opt(
+        "reuse_temporal",
+        str,
+        "auto",
+        choices=("auto", "on", "off"),
+        doc="reuse: combine last frame's reservoirs; auto: on unless frames are averaged "
+        "(--temporal accumulate), whose frames it would correlate",
+    ),
+    Opt(
+        "reuse_k",
+        int,
+        4,
+        range=(0, limits.STB_REUSE_K_MAX),
+        doc="reuse: spatial neighbours per pixel",
+    ),
+    Opt("reuse_radius", float, limits.STB_REUSE_RADIUS_PX, doc="reuse: spatial radius, px"),
+    Opt(
+        "reuse_m_cap",
+        float,
+        limits.STB_REUSE_M_CAP,
+        range=(0.0, 1e6),
+        doc="reuse: history confidence cap (frames' worth of candidates)",
+    ),
+    Opt(
+        "reuse_mis",
+        str,
+        "balance",
+        choices=("count", "balance"),
+        doc="reuse: spatial MIS weights, count (the 1/M rule: cheap, biased) or balance "
+        "(generalized balance heuristic: unbiased, (k+1)^2 targets)",
+    ),
+    Opt(
+        "reuse_visibility",
+        bool,
+        False,
+        doc="reuse: store a pick shadowed at the pixel as an empty reservoir (less noise "
+        "in shadow, biased at shadow edges)",
+    ),
 )
 #: Shader define of each one-sample ``select`` mode.
 SELECT_DEFINES = {"quad": "STB_QUAD_SELECT", "pixel": "STB_PIXEL_SELECT", "ris": "STB_RIS_SELECT"}
@@ -187,15 +234,23 @@ class StbLighting(LightingMethod):
         self._clusters: LightClusters | None = None
         self._clusters_key: tuple[int, bytes] | None = None
         self._cluster_buffers: SSBOPool | None = None
+        #: Reservoir reuse (``-o reuse=on``) and its history.
+        self.reuse = ReuseStage()
 
     def internal(self) -> tuple[Tex, ...]:
+        reuse = reuse_textures() if self.o["reuse"] else ()
         return (
             Tex("stb_bigtile", "r32ui", DERIVED),
             Tex("stb_smalltile", "rgba32ui", DERIVED),
             Tex("stb_terms", "rgba8", DERIVED),
             Tex("stb_term_split", "r8ui", DERIVED),
             Tex("stb_pixel_terms", "rgba8"),
+            *reuse,
         )
+
+    def reads(self) -> tuple[Resource, ...]:
+        extra = (Tex("g_motion", "rg16f"),) if self.o["reuse"] else ()
+        return (*super().reads(), *extra)
 
     def debug_passes(self) -> list[Pass]:
         return [StbDebugPass(self, aov) for aov in DEBUG_AOVS]
@@ -297,6 +352,7 @@ class StbLighting(LightingMethod):
             prog = program(frame, "lighting_direct.frag", self.lighting_defines(frame))
             self.bind_common(frame, prog)
             self.fullscreen_pass(frame, prog, "lighting")
+            self.reuse.reset()
             return
         ctx = frame.ctx
         bufs = frame.buffers
@@ -337,6 +393,13 @@ class StbLighting(LightingMethod):
         tsize = (w, h) if pixel_terms else g["terms"]
         terms = bufs.texture("stb_terms", 4, "f1", size=tsize)
         split = bufs.texture("stb_term_split", 1, "u1", size=tsize)
+        if self.o["reuse"]:
+            # The reuse stage evaluates the chosen light's term per pixel itself.
+            with frame.timings_scope("stb_terms"):
+                bufs.framebuffer("fb_stb_terms_unit", ["stb_terms"]).clear(1.0, 1.0, 1.0, 1.0)
+            self.reuse.execute(self, frame, defines, small, (lut_inv, lut_fwd))
+            frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
+            return
         if "STB_UNIT_TERMS" in defines:
             with frame.timings_scope("stb_terms"):
                 bufs.framebuffer("fb_stb_terms_unit", ["stb_terms"]).clear(1.0, 1.0, 1.0, 1.0)
@@ -442,6 +505,7 @@ class StbLighting(LightingMethod):
             draw_fullscreen(frame.ctx, prog, fbo, size)
 
     def release(self) -> None:
+        self.reuse.release()
         if self._cluster_buffers is not None:
             self._cluster_buffers.release()
         self._clusters = None

@@ -1,0 +1,135 @@
+// STB reuse (issue 31), pass 2 of 2: spatial reuse, visibility and shading, per pixel.
+//
+// * Spatial reuse: u_k neighbours at random offsets within u_radius px (a fresh draw
+//   per pixel and frame), each kept when its surface is like this pixel's
+//   (common/reuse_geometry.glsl); their reservoirs (this frame's, after temporal reuse:
+//   u_reuse) are combined with the pixel's own by generalized resampled importance
+//   sampling. Two MIS weights (u_mis): 0 = the 1/M rule (w_i = p_c(y_i) W_i M_i,
+//   W = sum w / (M p_c(y)): cheap, biased where a neighbour could not have produced
+//   this pixel's sample or the other way round); 1 = the generalized balance heuristic
+//   with confidences, m_i(y) = M_i p_i(y) / sum_j M_j p_j(y) over the kept reservoirs'
+//   own surfaces (unbiased; (k + 1)^2 target evaluations).
+// * Visibility: the chosen light's term at this pixel (shadow x cone x normalised IES,
+//   as the term pass computes it, at full resolution): the target is unshadowed, so
+//   shadowed candidates are shaded with their zero term and add nothing.
+// * Shading: sun, ambient and emission as stb_lighting.frag, plus f(y) x W.
+// * History: the final reservoir and this pixel's surface go to the image units read
+//   by the next frame's temporal pass. u_vis_reuse = 1 stores a reservoir whose light
+//   is fully shadowed here as empty (ReSTIR's visibility reuse: less noise in shadow,
+//   biased at shadow edges).
+#include "common/gbuffer.glsl"
+#include "common/rng.glsl"
+#include "common/sun.glsl"
+#include "common/lights.glsl"
+#define AREA_SHADOW_POINTS LIM_AREA_SHADOW_POINTS_STB
+#define AREA_SHADOW_PER_FRAME
+#include "common/shadow.glsl"
+#include "common/reservoir.glsl"
+#include "common/reuse_target.glsl"
+#include "common/reuse_geometry.glsl"
+#include "common/lighting_out.glsl"
+
+uniform usampler2D u_reuse;  // this frame's reservoirs after temporal reuse
+uniform int u_k;             // spatial neighbours (0 .. LIM_REUSE_K_MAX)
+uniform float u_radius;      // px
+uniform int u_mis;           // 0: 1/M, 1: generalized balance heuristic
+uniform int u_vis_reuse;     // 1: store shadowed picks as empty reservoirs
+
+layout(rgba32ui, binding = IMAGE_UNIT_REUSE_RESERVOIR) writeonly uniform uimage2D u_hist_res;
+layout(rgba32f, binding = IMAGE_UNIT_REUSE_SURFACE) writeonly uniform image2D u_hist_geo;
+
+const int NMAX = LIM_REUSE_K_MAX + 1;
+
+// Shadow x cone x normalised IES of light L at P (stb_shadow.frag's sample_term).
+float reuse_term(Light L, vec3 P, vec3 N) {
+    vec3 Ldir = normalize(L.pos_range.xyz - P);
+    return clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, P, N)), 0.0, 1.0);
+}
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    Surface s;
+    vec3 emission = surface_emission(px);
+    if (!read_surface(px, s)) {
+        imageStore(u_hist_res, px, reservoir_pack(reservoir_empty()));
+        imageStore(u_hist_geo, px, vec4(0.0));
+        write_background(px);
+        return;
+    }
+    float depth = texelFetch(g_depth, px, 0).r;
+#ifdef HAS_LINKS
+    uint group = link_group(px);
+    vec3 c = sun_and_ambient(s, group);
+#else
+    uint group = 0u;
+    vec3 c = sun_and_ambient(s);
+#endif
+    // Candidate reservoirs: 0 = this pixel's, then the kept neighbours.
+    Reservoir res[NMAX];
+    Surface srf[NMAX];
+    uint grp[NMAX];
+    res[0] = reservoir_unpack(texelFetch(u_reuse, px, 0));
+    srf[0] = s;
+    grp[0] = group;
+    int n = 1;
+    Rng rng = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x72000000u, u_counts.y);
+    for (int i = 0; i < u_k; ++i) {
+        float r = u_radius * sqrt(rng_float(rng));
+        float a = 2.0 * PI * rng_float(rng);
+        ivec2 q = px + ivec2(floor(r * vec2(cos(a), sin(a)) + 0.5));
+        if (q == px || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution.xy)))) continue;
+        Surface sq;
+        if (!read_surface(q, sq)) continue;
+        float dq = texelFetch(g_depth, q, 0).r;
+        if (!reuse_similar(depth, s.N, s.roughness, dq, sq.N, sq.roughness)) continue;
+        res[n] = reservoir_unpack(texelFetch(u_reuse, q, 0));
+        srf[n] = sq;
+#ifdef HAS_LINKS
+        grp[n] = link_group(q);
+#else
+        grp[n] = 0u;
+#endif
+        ++n;
+    }
+    Stream str = stream_empty();
+    float M = 0.0;
+    for (int i = 0; i < n; ++i) M += res[i].M;
+    for (int i = 0; i < n; ++i) {
+        Reservoir ri = res[i];
+        if (ri.y == LIM_EMPTY_LIGHT_INDEX || !(ri.W > 0.0)) continue;
+        float pc = reuse_target(ri.y, s, group);
+        float w;
+        if (u_mis == 1) {
+            // m_i(y_i) = M_i p_i(y_i) / sum_j M_j p_j(y_i); p_0 = pc.
+            float num = 0.0, den = 0.0;
+            for (int j = 0; j < n; ++j) {
+                float pj = j == 0 ? pc : reuse_target(ri.y, srf[j], grp[j]);
+                den += res[j].M * pj;
+                if (j == i) num = res[j].M * pj;
+            }
+            w = den > 0.0 ? num / den * pc * ri.W : 0.0;
+        } else {
+            w = pc * ri.W * ri.M;
+        }
+        stream_add(str, ri.y, pc, w, rng_float(rng));
+    }
+    Reservoir fin = stream_reservoir(str, M, u_mis == 1 ? 1.0 : M);
+    if (fin.y != LIM_EMPTY_LIGHT_INDEX) {
+        Light L = lights[fin.y];
+        vec3 Ldir, d, sp;
+        float term = 0.0;
+        if (light_reflect(L, s, Ldir, d, sp)) {
+            term = reuse_term(L, s.P, s.N);
+            c += (d * L.misc.z + sp * L.misc.w) * term * fin.W;
+        }
+        if (u_vis_reuse == 1 && term <= 0.0) {
+            fin.W = 0.0;
+            fin.y = LIM_EMPTY_LIGHT_INDEX;
+            fin.p = 0.0;
+        }
+    }
+    imageStore(u_hist_res, px, reservoir_pack(fin));
+    imageStore(u_hist_geo, px, vec4(depth, texelFetch(g_normal, px, 0).rg, s.roughness));
+    c += emission;
+    write_lighting(px, s, c);
+}

@@ -1,0 +1,97 @@
+// STB reuse (issue 31), pass 1 of 2: per pixel, the initial reservoir from the pixel's
+// small-tile samples, combined with last frame's reservoir of the same surface.
+//
+// * Initial candidates: the STB_N samples of the pixel's small tile (stb_smalltile.frag),
+//   each a light with an unbiased contribution weight W_j for its stream (select=all: the
+//   streams partition the K candidates, so the estimates add up) or for all lights
+//   (select=quad/pixel/ris: N independent picks, each a whole estimate, so 1/N of the
+//   sum: u_init_scale). Resampled by the per-pixel target p (common/reuse_target.glsl):
+//   w_j = p(y_j) W_j x scale, W = sum w / p(y). Confidence M = 1.
+// * Temporal reuse: the previous frame's reservoir at this surface's previous pixel
+//   (the G-buffer's motion vectors minus this frame's jitter, nearest texel), kept only
+//   when that texel saw the same surface (its stored depth matches this point's depth in
+//   the previous view, normal and roughness agree: disocclusion otherwise), its light
+//   still in view (u_remap: previous FoV index -> this frame's), and M clamped to
+//   u_m_cap. Its target is re-evaluated with this frame's light data (lights move and
+//   change); a light whose target fell since it was stored (switched off, dimmed, moved
+//   away) scales the history's confidence by the ratio, so the history cannot outvote
+//   the new candidates for long (0: the history is dropped). Combined with the 1/M rule
+//   (confidence-weighted: same surface, so the balance heuristic between the two
+//   reduces to it when the lights are unchanged).
+#include "common/gbuffer.glsl"
+#include "common/rng.glsl"
+#include "common/lights.glsl"
+#include "common/links.glsl"
+#include "common/tiles.glsl"
+#include "common/reservoir.glsl"
+#include "common/reuse_target.glsl"
+#include "common/reuse_geometry.glsl"
+
+uniform usampler2D u_smalltile;  // rgba32ui small-tile samples
+uniform sampler2D u_motion;      // g_motion: current (jittered) - previous (unjittered) px
+uniform usampler2D u_prev_res;   // last frame's reservoirs (reservoir_pack)
+uniform sampler2D u_prev_geo;    // last frame's depth (m), oct normal, roughness
+uniform mat4 u_prev_view;        // previous world -> view
+uniform vec2 u_jitter;           // this frame's subpixel jitter (px)
+uniform int u_history;           // 1: the previous frame's reservoirs are usable
+uniform int u_remap;             // 1: FoV indices changed since the last frame
+uniform float u_m_cap;           // history confidence cap
+uniform float u_init_scale;      // 1 (streams) or 1/N (independent picks)
+
+layout(std430, binding = SSBO_STB_REUSE_REMAP) readonly buffer ReuseRemap { int remap[]; };
+
+layout(location = 0) out uvec4 o_reservoir;
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    Surface s;
+    if (!read_surface(px, s)) {
+        o_reservoir = reservoir_pack(reservoir_empty());
+        return;
+    }
+#ifdef HAS_LINKS
+    uint group = link_group(px);
+#else
+    uint group = 0u;
+#endif
+    Rng rng = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
+    ivec2 st; int slot;
+    quad_owner(px, st, slot);
+    uvec4 smp = texelFetch(u_smalltile, st, 0);
+    Stream str = stream_empty();
+    for (int j = 0; j < STB_N; ++j) {
+        uint li = sample_index(smp[j]);
+        float Wj = sample_weight(smp[j]);
+        if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
+        float p = reuse_target(li, s, group);
+        stream_add(str, li, p, p * Wj * u_init_scale, rng_float(rng));
+    }
+    // The initial reservoir on its own has M = 1 and W = sum w / p(y).
+    float M = 1.0;
+    // Its resampling weight in the 1/M combination below is p(y) W M = sum w: the stream
+    // already holds it.
+    if (u_history == 1) {
+        vec2 mv = texelFetch(u_motion, px, 0).xy - u_jitter;
+        ivec2 q = ivec2(floor(gl_FragCoord.xy - mv));
+        if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, ivec2(u_resolution.xy)))) {
+            vec4 g = texelFetch(u_prev_geo, q, 0);
+            float prev_d = max(-(u_prev_view * vec4(s.P, 1.0)).z, 1e-6);
+            if (reuse_similar(prev_d, s.N, s.roughness, g.x, oct_decode(g.yz), g.w)) {
+                Reservoir h = reservoir_unpack(texelFetch(u_prev_res, q, 0));
+                uint li = h.y;
+                if (u_remap == 1 && li != LIM_EMPTY_LIGHT_INDEX) {
+                    int m = remap[li];
+                    li = m < 0 ? LIM_EMPTY_LIGHT_INDEX : uint(m);
+                }
+                float Mh = min(h.M, u_m_cap);
+                float p = reuse_target(li, s, group);
+                if (h.p > 0.0 && p < h.p) Mh *= p / h.p;  // the light fell: trust less
+                if (Mh > 0.0) {
+                    stream_add(str, li, p, p * h.W * Mh, rng_float(rng));
+                    M += Mh;
+                }
+            }
+        }
+    }
+    o_reservoir = reservoir_pack(stream_reservoir(str, M, M));
+}

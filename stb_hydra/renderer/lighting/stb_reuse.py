@@ -1,0 +1,213 @@
+"""STB reservoir reuse (issue 31, ``-o reuse=on``): a ReSTIR-style stage on top of
+STB's small-tile candidates, replacing the term and lighting passes.
+
+1. ``stb_reuse_temporal.frag`` (per pixel): the initial reservoir resamples the pixel's
+   N small-tile samples with a per-pixel target (unshadowed reflected luminance,
+   ``common/reuse_target.glsl``); last frame's reservoir of the same surface
+   (reprojected with the G-buffer's motion vectors, rejected on depth / normal /
+   roughness mismatch, its light index remapped into this frame's FoV list, its
+   confidence M capped) is combined with it, its target re-evaluated with this frame's
+   light data.
+2. ``stb_reuse_shade.frag`` (per pixel): k neighbours within a radius (a fresh random
+   draw per pixel and frame) with similar surfaces are combined (the 1/M rule, or the
+   generalized balance heuristic: unbiased); the chosen light is shaded with its term
+   (shadow x cone x IES) evaluated at the pixel, so shadowed candidates add nothing;
+   the final reservoir and the pixel's surface are stored for the next frame.
+
+Reservoirs: rgba32ui (light index in the frame's FoV list, bits of W, M and the stored
+target), full resolution. The history (two reservoir and two surface textures, ping-
+ponged) is dropped on the first frame, a resize, or when the light table's row count
+changes (rows renumbered); a camera cut needs no test of its own: the per-pixel
+depth / normal test rejects what no longer matches.
+
+Cost per pixel: N + 1 targets, k neighbours (k + 1 targets for 1/M, (k + 1)^2 for the
+balance heuristic), one term (shadow lookup) and one shade -- independent of the
+scene's light count, like STB.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import moderngl
+import numpy as np
+
+from ..camera import ViewSetup
+from ..gl import set_uniform
+from ..graph import Tex
+from ..records import InViewLights
+from ..shader_constants import (
+    IMAGE_UNIT_REUSE_RESERVOIR,
+    IMAGE_UNIT_REUSE_SURFACE,
+    SSBO_STB_REUSE_REMAP,
+)
+from .base import program
+
+if TYPE_CHECKING:
+    from ..frame import FrameContext
+
+#: This frame's reservoirs after temporal reuse (read by the shading pass).
+CURRENT = "stb_reuse_cur"
+#: Ping-ponged history: reservoirs and surfaces (linear depth m, oct normal, roughness).
+HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
+SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
+#: MIS weights of the spatial combination (``-o reuse_mis``).
+MIS_MODES = {"count": 0, "balance": 1}
+
+
+def reuse_textures() -> tuple[Tex, ...]:
+    """The stage's render buffers (full resolution)."""
+    return (
+        Tex(CURRENT, "rgba32ui"),
+        *(Tex(n, "rgba32ui") for n in HISTORY),
+        *(Tex(n, "rgba32f") for n in SURFACE),
+    )
+
+
+def fov_remap(prev_rows: np.ndarray, cur_rows: np.ndarray, n_rows: int) -> np.ndarray:
+    """Previous FoV index -> this frame's FoV index (int32, -1: not in view now), from
+    the light-table rows of both FoV lists."""
+    inv = np.full(max(int(n_rows), 1), -1, dtype=np.int32)
+    cur = np.asarray(cur_rows, dtype=np.int64)
+    inv[cur] = np.arange(len(cur), dtype=np.int32)
+    prev = np.asarray(prev_rows, dtype=np.int64)
+    out = np.full(len(prev), -1, dtype=np.int32)
+    ok = prev < len(inv)
+    out[ok] = inv[prev[ok]]
+    return out
+
+
+def temporal_reuse(mode: str, frame: FrameContext) -> bool:
+    """Whether this frame combines last frame's reservoirs (``-o reuse_temporal``).
+    ``auto``: not under ``--temporal accumulate``, whose frames are averaged as
+    independent estimates: reused reservoirs correlate them, and the average of 16
+    correlated frames is worse than of 16 independent ones (docs/STB_NOTES.md)."""
+    if mode == "auto":
+        return str(frame.settings.temporal) != "accumulate"
+    return mode == "on"
+
+
+class ReuseStage:
+    """The reuse passes of one STB method instance and the history they keep."""
+
+    def __init__(self) -> None:
+        self.count = 0  # frames of history (0: none)
+        self._parity = 0
+        self._prev_view: ViewSetup | None = None
+        self._prev_rows: np.ndarray | None = None
+        self._n_rows = -1
+        self._size: tuple[int, int] | None = None
+        self._remap: moderngl.Buffer | None = None
+        #: Why the history was dropped on the last frame ("" = kept).
+        self.last_reset = ""
+
+    def reset(self) -> None:
+        """Forget the history (the next frame starts from its own candidates)."""
+        self.count = 0
+
+    def _reset_reason(self, method: Any, frame: FrameContext, n_rows: int) -> str:
+        size = (int(frame.buffers.size[0]), int(frame.buffers.size[1]))
+        reason = ""
+        if self.count == 0 or self._prev_view is None or self._prev_rows is None:
+            reason = "start"
+        elif size != self._size:
+            reason = "resize"
+        elif n_rows != self._n_rows:
+            reason = "lights"
+        self._size = size
+        return reason
+
+    def _bind_remap(self, frame: FrameContext, rows: np.ndarray, n_rows: int) -> bool:
+        """Upload and bind the FoV index remap; False when the FoV list is unchanged."""
+        prev = self._prev_rows
+        changed = prev is not None and not np.array_equal(prev, rows)
+        data = fov_remap(prev, rows, n_rows) if changed and prev is not None else None
+        payload = data.tobytes() if data is not None and len(data) else b"\xff\xff\xff\xff"
+        if self._remap is None or self._remap.size < len(payload):
+            if self._remap is not None:
+                self._remap.release()
+            self._remap = frame.ctx.buffer(reserve=max(len(payload), 4 * 1024))
+        self._remap.write(payload)
+        self._remap.bind_to_storage_buffer(SSBO_STB_REUSE_REMAP)
+        return changed
+
+    def execute(
+        self,
+        method: Any,
+        frame: FrameContext,
+        defines: dict[str, Any],
+        small: moderngl.Texture,
+        luts: tuple[moderngl.Texture, moderngl.Texture],
+    ) -> None:
+        """Run both passes; the second writes ``lighting`` (and taa's inputs).
+        ``method``: the :class:`~.stb.StbLighting` that owns this stage (its uniform
+        and binding helpers; typed loosely to keep the modules acyclic)."""
+        o = method.o
+        bufs = frame.buffers
+        rows = np.asarray(frame.get(InViewLights).rows)
+        n_rows = int(method.delegate.light_table.n_rows) if method.delegate is not None else -1
+        reason = self._reset_reason(method, frame, n_rows)
+        self.last_reset = reason
+        frame.stats["stb_reuse_reset"] = reason
+        history = 0 if reason or not temporal_reuse(o["reuse_temporal"], frame) else 1
+        src, dst = self._parity, 1 - self._parity
+        cur = bufs.texture(CURRENT, 4, "u4")
+        h_src = bufs.texture(HISTORY[src], 4, "u4")
+        h_dst = bufs.texture(HISTORY[dst], 4, "u4")
+        g_src = bufs.texture(SURFACE[src], 4, "f4")
+        g_dst = bufs.texture(SURFACE[dst], 4, "f4")
+        remap = self._bind_remap(frame, rows, n_rows) if history else False
+        if not history:
+            self._bind_remap(frame, rows[:0], n_rows)  # the SSBO must be bound
+        lut_inv, lut_fwd = luts
+
+        # 1. initial candidates + temporal reuse
+        prog = program(frame, "stb_reuse_temporal.frag", defines)
+        method._common_uniforms(frame, prog)
+        unit = method.bind_common(frame, prog)
+        for name, tex in (
+            ("u_smalltile", small),
+            ("u_quad_lut", lut_inv),
+            ("u_quad_fwd", lut_fwd),
+            ("u_motion", bufs.textures["g_motion"]),
+            ("u_prev_res", h_src),
+            ("u_prev_geo", g_src),
+        ):
+            unit = method._bind(frame, prog, unit, name, tex)
+        prev = self._prev_view if self._prev_view is not None else frame.view
+        set_uniform(prog, "u_prev_view", np.ascontiguousarray(prev.view, dtype=np.float64))
+        set_uniform(prog, "u_jitter", tuple(float(j) for j in frame.view.jitter))
+        set_uniform(prog, "u_history", history)
+        set_uniform(prog, "u_remap", 1 if remap else 0)
+        set_uniform(prog, "u_m_cap", float(o["reuse_m_cap"]))
+        one = o["select"] != "all"  # independent picks: each a whole estimate
+        set_uniform(prog, "u_init_scale", 1.0 / int(o["N"]) if one else 1.0)
+        set_uniform(prog, "u_eps", float(o["eps"]))
+        method._pass(frame, prog, [CURRENT], bufs.size)
+
+        # 2. spatial reuse, visibility, shading, history
+        prog = program(frame, "stb_reuse_shade.frag", method.lighting_defines(frame, defines))
+        unit = method.bind_common(frame, prog)
+        method._bind(frame, prog, unit, "u_reuse", cur)
+        set_uniform(prog, "u_k", int(o["reuse_k"]))
+        set_uniform(prog, "u_radius", float(o["reuse_radius"]))
+        set_uniform(prog, "u_mis", MIS_MODES[o["reuse_mis"]])
+        set_uniform(prog, "u_vis_reuse", 1 if o["reuse_visibility"] else 0)
+        set_uniform(prog, "u_eps", float(o["eps"]))
+        h_dst.bind_to_image(IMAGE_UNIT_REUSE_RESERVOIR, read=False, write=True)
+        g_dst.bind_to_image(IMAGE_UNIT_REUSE_SURFACE, read=False, write=True)
+        with frame.timings_scope("stb_lighting"):
+            method.fullscreen_pass(frame, prog, "lighting")
+        frame.ctx.memory_barrier()
+
+        self._prev_view = frame.view
+        self._prev_rows = rows.copy()
+        self._n_rows = n_rows
+        self.count = 1 if reason else self.count + 1
+        self._parity = dst
+
+    def release(self) -> None:
+        if self._remap is not None:
+            self._remap.release()
+            self._remap = None
+        self.count = 0
