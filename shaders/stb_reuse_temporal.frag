@@ -13,11 +13,12 @@
 //   the previous view, normal and roughness agree: disocclusion otherwise), its light
 //   still in view (u_remap: previous FoV index -> this frame's), and M clamped to
 //   u_m_cap. Its target is re-evaluated with this frame's light data (lights move and
-//   change); a light whose target fell since it was stored (switched off, dimmed, moved
-//   away) scales the history's confidence by the ratio, so the history cannot outvote
-//   the new candidates for long (0: the history is dropped). Combined with the 1/M rule
-//   (confidence-weighted: same surface, so the balance heuristic between the two
-//   reduces to it when the lights are unchanged).
+//   change). Inside the influence sphere of a light that changed since the last frame
+//   the history's M is capped further (u_change_caps; 0 drops it: its W was made for
+//   the old lights, and a switched-off light's share lives on in the W of other
+//   lights' reservoirs). Combined with the 1/M rule (confidence-weighted: same surface,
+//   so the balance heuristic between the two reduces to it while the lights are
+//   unchanged).
 #include "common/gbuffer.glsl"
 #include "common/rng.glsl"
 #include "common/lights.glsl"
@@ -37,6 +38,9 @@ uniform int u_history;           // 1: the previous frame's reservoirs are usabl
 uniform int u_remap;             // 1: FoV indices changed since the last frame
 uniform float u_m_cap;           // history confidence cap
 uniform float u_init_scale;      // 1 (streams) or 1/N (independent picks)
+uniform int u_changes;           // lights changed since the last frame (<= LIM_REUSE_MAX_CHANGES)
+uniform vec4 u_change_spheres[LIM_REUSE_MAX_CHANGES];  // their influence: centre xyz, radius (m)
+uniform float u_change_caps[LIM_REUSE_MAX_CHANGES];    // history confidence cap inside
 
 layout(std430, binding = SSBO_STB_REUSE_REMAP) readonly buffer ReuseRemap { int remap[]; };
 
@@ -84,8 +88,12 @@ void main() {
                     li = m < 0 ? LIM_EMPTY_LIGHT_INDEX : uint(m);
                 }
                 float Mh = min(h.M, u_m_cap);
+                for (int i = 0; i < u_changes; ++i) {
+                    if (distance(s.P, u_change_spheres[i].xyz) < u_change_spheres[i].w) {
+                        Mh = min(Mh, u_change_caps[i]);
+                    }
+                }
                 float p = reuse_target(li, s, group);
-                if (h.p > 0.0 && p < h.p) Mh *= p / h.p;  // the light fell: trust less
                 if (Mh > 0.0) {
                     stream_add(str, li, p, p * h.W * Mh, rng_float(rng));
                     M += Mh;

@@ -413,6 +413,20 @@ STB_REUSE_RADIUS_PX = 24.0
 STB_REUSE_DEPTH_REL = 0.1
 STB_REUSE_NORMAL_COS = 0.9
 STB_REUSE_ROUGHNESS_DIFF = 0.25
+#: Lights that changed since the last frame (``renderer/lighting/stb_reuse.py``): inside
+#: a changed light's influence sphere the history's confidence is capped, per rule
+#: (cap, relative intensity change above, move above this fraction of the range);
+#: the first rule wins. Switched on/off (or re-typed) is the first rule. A history
+#: sample's weight was made for the old lights: where they changed, old reservoirs of
+#: *other* lights overstate (a switched-off light's share went into their W), so the
+#: history is dropped there rather than merely re-weighted.
+STB_REUSE_CHANGE_RULES: tuple[tuple[float, float, float], ...] = (
+    (0.0, 0.5, 0.1),
+    (2.0, 0.02, 0.01),
+)
+#: Changed-light spheres tested per pixel; more changed lights than this cap the
+#: history everywhere (by the strictest rule that fired).
+STB_REUSE_MAX_CHANGES = 32
 
 # --- STB big-tile target ("shaped") --------------------------------------------------
 

@@ -17,7 +17,7 @@ import sys
 
 import numpy as np
 
-PASSES = ("stb_bigtile", "stb_smalltile", "stb_terms", "stb_lighting")
+PASSES = ("stb_bigtile", "stb_smalltile", "stb_terms", "stb_reuse_cur", "stb_lighting")
 
 
 def render_in_turn(stage: str, settings: dict, frames: int) -> dict:
@@ -66,15 +66,28 @@ def main(argv: list[str] | None = None) -> int:
         name: [[tf.get(f"lighting.{p}", 0.0) for p in PASSES] for tf in t.frames[a.warmup :]]
         for name, t in timings.items()
     }
+    # The whole frame: every top-level phase and pass (names without a dot).
+    frame_ms = {
+        name: float(
+            np.median(
+                [sum(v for k, v in tf.items() if "." not in k) for tf in t.frames[a.warmup :]]
+            )
+        )
+        for name, t in timings.items()
+    }
     print(f"{a.stage} {w}x{h}, {a.frames} frames each (interleaved), load {os.getloadavg()[0]:.2f}")
-    base = None
+    base = base_frame = None
     for name, rows in times.items():
         arr = np.asarray(rows)
         med = np.median(arr, axis=0)
         total = float(np.median(arr.sum(axis=1)))
         base = base or total
+        base_frame = base_frame or frame_ms[name]
         passes = " ".join(f"{p[4:]}={v:.1f}" for p, v in zip(PASSES, med, strict=True))
-        print(f"  {name:12s} {passes}  STB passes {total:.1f} ms ({total / base:.2f}x)")
+        print(
+            f"  {name:12s} {passes}  STB passes {total:.1f} ms ({total / base:.2f}x), "
+            f"frame {frame_ms[name]:.1f} ms ({frame_ms[name] / base_frame:.2f}x)"
+        )
     return 0
 
 

@@ -1,0 +1,310 @@
+"""STB reservoir reuse (issue 31, ``-o reuse=on``) on real GL: unbiasedness against a
+closed-form many-light scene, disocclusion, the M cap, determinism, finite output.
+Small images, fixed seeds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from stagegen import (
+    LAMBERT_FLOOR_USDA,
+    USDA_HEADER,
+    camera_usda,
+    ground_usda,
+    plane_points,
+    usda_stage,
+)
+
+import stb_hydra
+from stb_hydra.renderer.engine import Engine
+from stb_hydra.renderer.frame import RenderSettings
+from stb_hydra.renderer.lighting.stb_reuse import CURRENT, fov_remap
+
+W, H = 160, 90
+RHO = 0.5
+#: The reuse configuration under test: N = 4 candidates per pixel, unbiased MIS.
+REUSE = dict(reuse=True, N=4, reuse_mis="balance")
+
+
+def floor_lights(n: int, seed: int = 3) -> tuple[str, np.ndarray, np.ndarray]:
+    """n point lights (no specular) over LAMBERT_FLOOR_USDA's plane: (light prims, their
+    positions (n, 3) m, their intensities (n,) cd)."""
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform([-5.0, 0.3, -3.0], [5.0, 2.0, 3.0], (n, 3))
+    radiance = rng.uniform(500.0, 20000.0, n)
+    prims = "".join(
+        f'def SphereLight "L{i}"\n{{\n    float inputs:intensity = {radiance[i]:.3f}\n'
+        "    float inputs:radius = 0.1\n    float inputs:specular = 0\n"
+        "    bool treatAsPoint = 1\n"
+        f"    double3 xformOp:translate = ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f})\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+        for i, p in enumerate(pos)
+    )
+    # treatAsPoint: intensity (cd) = radiance x pi r^2 (tests/test_render_closed_form.py).
+    return prims, np.round(pos, 4), np.round(radiance, 3) * math.pi * 0.1**2
+
+
+def closed_form(pts: np.ndarray, pos: np.ndarray, inten: np.ndarray) -> np.ndarray:
+    """Lambertian radiance of the plane y = 0 (nits): sum of rho / pi I cos / d^2."""
+    out = np.zeros(pts.shape[:2])
+    for p, i in zip(pos, inten, strict=True):  # test-side closed form, not the frame path
+        d = p - pts
+        dist = np.linalg.norm(d, axis=-1)
+        out += RHO / math.pi * i * (d[..., 1] / dist) / dist**2
+    return out
+
+
+def relmse(a: np.ndarray, b: np.ndarray, eps: float = 1e-2) -> float:
+    return float(np.mean((a - b) ** 2 / (b**2 + eps)))
+
+
+@pytest.fixture(scope="module")
+def many_lights():
+    prims, pos, inten = floor_lights(150)
+    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=prims))
+    return stage, closed_form(plane_points(stage, W, H), pos, inten)
+
+
+def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
+    """The expected image of the unbiasedness tests: every light's contribution by the
+    closed form; the reference method agrees (so a failure below is the reuse's)."""
+    stage, exp = many_lights
+    ref = stb_hydra.render(stage, width=W, height=H, lighting="reference")
+    assert np.abs(ref[..., 0] / exp - 1.0).max() < 0.01
+
+
+@pytest.mark.parametrize(
+    "extra,tol",
+    [
+        ({}, 3e-3),  # spatial reuse (temporal is off under accumulation: auto)
+        ({"reuse_temporal": "on"}, 6e-3),  # frames correlated by the history: slower
+        ({"reuse_k": 0}, 3e-3),  # the per-pixel resampling of the N candidates alone
+    ],
+)
+def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):
+    """Weight cap off, balance-heuristic MIS: the mean of M frames converges to the
+    closed form (150 lights > K, so the big tile's SRS is part of it), error ~ 1/M,
+    image mean within 1 %."""
+    stage, exp = many_lights
+    opts = dict(REUSE, weight_cap=None, K=64, big_tile=32, **extra)
+    e32 = relmse(
+        stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=32, **opts)[..., 0],
+        exp,
+    )
+    img = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **opts)
+    got = img[..., 0]
+    e256 = relmse(got, exp)
+    assert np.isfinite(img).all()
+    assert e256 <= tol, e256
+    assert e256 < e32 / 3.0, (e32, e256)  # 8x the frames: error falls roughly as 1/M
+    assert abs(got.mean() / exp.mean() - 1.0) < 0.01
+
+
+def test_reuse_off_is_todays_pipeline(gl_ctx, many_lights):
+    """``reuse=off`` (the default) renders bit for bit what no option renders."""
+    stage, _ = many_lights
+    a = stb_hydra.render(stage, width=64, height=36, lighting="stb", accumulate=2)
+    b = stb_hydra.render(stage, width=64, height=36, lighting="stb", accumulate=2, reuse=False)
+    assert np.array_equal(a, b)
+
+
+# --- history ----------------------------------------------------------------------------
+
+SLIDER = """def Cube "Slider"
+{
+    double size = 2
+    double3 xformOp:translate.timeSamples = {1: (-2, 1, 0), 2: (2, 1, 0)}
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "A"
+{
+    float inputs:intensity = 30000
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (-3, 4, 3)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "B"
+{
+    float inputs:intensity = 30000
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (3, 4, 3)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+
+
+def engine(stage, w: int, h: int, **opts) -> Engine:
+    """One STB engine rendering single frames (``temporal="off"``: the reuse keeps its
+    history between calls, ``reuse_temporal=auto`` -> on)."""
+    settings = RenderSettings(
+        width=w, height=h, lighting="stb", temporal="off", method_options=dict(REUSE, **opts)
+    )
+    return Engine(stage, settings)
+
+
+def reservoir_m(eng: Engine) -> np.ndarray:
+    """M of this frame's reservoirs after temporal reuse, (h, w), top row first."""
+    tex = eng.buffers.textures[CURRENT]
+    w, h = tex.size
+    raw = np.frombuffer(tex.read(), dtype=np.uint32).reshape(h, w, 4)
+    return raw[::-1, :, 2].copy().view(np.float32)
+
+
+def depth(eng: Engine) -> np.ndarray:
+    tex = eng.buffers.textures["g_depth"]
+    w, h = tex.size
+    return np.frombuffer(tex.read(), dtype=np.float32).reshape(h, w)[::-1].copy()
+
+
+def test_disocclusion_resets_history(gl_ctx):
+    """A box slides away: pixels that saw the box and now see the ground start from the
+    frame's own candidates (M = 1); pixels that saw the ground both times keep their
+    history (M > 1, up to the cap)."""
+    stage = usda_stage(USDA_HEADER + camera_usda((0, 8, 8), -45) + ground_usda(20) + SLIDER)
+    eng = engine(stage, 128, 72)
+    try:
+        for _ in range(6):
+            eng.render(time=1.0)
+        d1 = depth(eng)
+        eng.render(time=2.0)
+        d2, m = depth(eng), reservoir_m(eng)
+    finally:
+        eng.release()
+    both = (d1 > 0) & (d2 > 0)
+    # Disoccluded: farther now (the box moved off them, uncovering the ground). Pixels
+    # the box moved onto keep their history (the box's own surface, reprojected).
+    changed = both & (d2 > 1.2 * d1)
+    kept = both & (np.abs(d2 - d1) < 1e-4 * d1)
+    assert changed.sum() > 100 and kept.sum() > 1000
+    assert np.all(m[changed] == 1.0), np.unique(m[changed])
+    assert np.median(m[kept]) > 3.0  # 6 frames of history (M counts neighbours' too)
+
+
+SWITCH = """def SphereLight "A"
+{
+    float inputs:intensity.timeSamples = {1: 40000, 2: 0, 3: 40000}
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (-2, 1.5, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "B"
+{
+    float inputs:intensity = 20000
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (2, 1.5, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+
+
+def frame_means(stage, times: list[float], **opts) -> tuple[list[float], list[float]]:
+    """Image mean and the largest reservoir M after temporal reuse, per frame."""
+    eng = engine(stage, 96, 54, **opts)
+    try:
+        means, ms = [], []
+        for t in times:
+            eng.render(time=t)
+            means.append(float(eng.aovs["color"][..., :3].mean()))
+            ms.append(float(reservoir_m(eng).max()))
+        return means, ms
+    finally:
+        eng.release()
+
+
+@pytest.mark.parametrize("cap", [20.0, 4.0])
+def test_m_cap_and_switched_lights(gl_ctx, cap):
+    """The history's confidence never exceeds the M cap (a reservoir after temporal reuse
+    holds at most cap + 1 frames' worth), so the history can never outvote a frame's
+    own candidates by more than that. Light A switched off (time 2) and on again (time
+    3): the history inside A's influence sphere is dropped (its W was made for the old
+    lights), so the first frame after each switch is already within noise of the
+    reference -- no lag, for any cap."""
+    stage = usda_stage(USDA_HEADER + camera_usda((0, 8, 8), -45) + ground_usda(20) + SWITCH)
+    ref = {
+        t: float(stb_hydra.render(stage, width=96, height=54, lighting="reference", time=t).mean())
+        for t in (1.0, 2.0, 3.0)
+    }
+    assert ref[1.0] > 1.5 * ref[2.0]  # A is a large part of the image
+    times = [1.0] * 30 + [2.0] * 3 + [3.0] * 3
+    means, ms = frame_means(stage, times, reuse_m_cap=cap)
+    assert max(ms) <= cap + 1.0, (cap, max(ms))
+    assert ms[29] == cap + 1.0  # 30 still frames: the cap is reached
+    for k, t in ((30, 2.0), (31, 2.0), (33, 3.0), (34, 3.0)):
+        assert abs(means[k] / ref[t] - 1.0) < 0.1, (cap, k, means[k], ref[t])
+
+
+def test_fov_remap():
+    """Previous FoV index -> this frame's, through the light-table rows."""
+    prev = np.array([5, 2, 9, 7])
+    cur = np.array([2, 7, 1])
+    assert fov_remap(prev, cur, 10).tolist() == [-1, 0, -1, 1]
+
+
+# --- determinism and numerics -----------------------------------------------------------
+
+
+def test_same_seed_same_image(gl_ctx, many_lights):
+    stage, _ = many_lights
+    runs = []
+    for _ in range(2):
+        eng = engine(stage, 96, 54)
+        try:
+            for _ in range(3):
+                eng.render(time=1.0)
+            runs.append(eng.aovs["color"].copy())
+        finally:
+            eng.release()
+    assert np.array_equal(runs[0], runs[1])
+
+
+def shadowed_scene() -> str:
+    rng = np.random.default_rng(7)
+    s = [USDA_HEADER + camera_usda((0, 8, 8), -45) + ground_usda(20)]
+    s.append(
+        'def Cube "Box"\n{\n    double size = 2\n    double3 xformOp:translate = (0, 1, 0)\n'
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    for i in range(40):
+        p = rng.uniform([-6, 0.5, -6], [6, 3, 6])
+        cone = (
+            "    float inputs:shaping:cone:angle = 40\n    float xformOp:rotateX = -90\n"
+            if i % 3 == 0
+            else ""
+        )
+        order = '"xformOp:translate", "xformOp:rotateX"' if cone else '"xformOp:translate"'
+        schema = ' (\n    prepend apiSchemas = ["ShapingAPI", "ShadowAPI"]\n)' if cone else ""
+        s.append(
+            f'def SphereLight "L{i}"{schema}\n{{\n    float inputs:intensity = 8000\n'
+            f"    float inputs:radius = 0.05\n{cone}"
+            f"    double3 xformOp:translate = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})\n"
+            f"    uniform token[] xformOpOrder = [{order}]\n}}\n"
+        )
+    return "".join(s)
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [
+        {"N": 1},
+        {"reuse_mis": "count"},
+        {"reuse_mis": "count", "reuse_visibility": True},
+        {"select": "ris"},
+        {"reuse_k": 8, "reuse_radius": 2.0},
+        {"reuse_k": 0, "reuse_temporal": "off"},
+        {"reuse_m_cap": 0.0},
+        {"weight_cap": None, "shadow_res": "pixel"},
+    ],
+)
+def test_no_nan_or_inf(gl_ctx, opts):
+    stage = usda_stage(shadowed_scene())
+    eng = engine(stage, 64, 36, **opts)
+    try:
+        for _ in range(4):
+            eng.render(time=1.0)
+            img = eng.aovs["color"]
+            assert np.isfinite(img).all(), opts
+            assert img[..., :3].max() > 0.0
+    finally:
+        eng.release()
