@@ -8,7 +8,8 @@
 //   W = sum w / (M p_c(y)): cheap, biased where a neighbour could not have produced
 //   this pixel's sample or the other way round); 1 = the generalized balance heuristic
 //   with confidences, m_i(y) = M_i p_i(y) / sum_j M_j p_j(y) over the kept reservoirs'
-//   own surfaces (unbiased; (k + 1)^2 target evaluations).
+//   own surfaces (unbiased; (k + 1)^2 target evaluations); 2 = pairwise MIS (unbiased,
+//   2k + 1 evaluations; see below).
 // * Visibility: the chosen light's term at this pixel (shadow x cone x normalised IES,
 //   as the term pass computes it, at full resolution): the target is unshadowed, so
 //   shadowed candidates are shaded with their zero term and add nothing.
@@ -99,7 +100,30 @@ void main() {
         if (ri.y == LIM_EMPTY_LIGHT_INDEX || !(ri.W > 0.0)) continue;
         float pc = reuse_target(ri.y, s, group);
         float w;
-        if (u_mis == 1) {
+        if (u_mis == 2) {
+            // Pairwise MIS with confidences: the canonical (this pixel, c = 0) against each
+            // neighbour j in turn, A_j(x) = Mn p_j(x) / (Mn p_j(x) + Mc p_c(x)), pair j
+            // weighted M_j / Mn (Mn: the neighbours' total M); m_j(y_j) = M_j / Mn x
+            // A_j(y_j), m_c(y_c) = sum_j M_j / Mn x (1 - A_j(y_c)). Sums to 1 for any x,
+            // 0 where p_j(x) = 0, and M_i / M for equal targets; 2k + 1 targets
+            // (p_j(y_j) is the neighbour's own, stored with its reservoir).
+            float Mc = res[0].M, Mn = M - res[0].M;
+            float m;
+            if (n == 1 || !(Mn > 0.0)) {
+                m = i == 0 ? 1.0 : 0.0;
+            } else if (i == 0) {
+                m = 0.0;
+                for (int j = 1; j < n; ++j) {
+                    float pj = reuse_target(ri.y, srf[j], grp[j]);
+                    float den = Mn * pj + Mc * pc;
+                    m += den > 0.0 ? res[j].M / Mn * (Mc * pc / den) : res[j].M / Mn;
+                }
+            } else {
+                float den = Mn * ri.p + Mc * pc;
+                m = den > 0.0 ? res[i].M * ri.p / den : 0.0;
+            }
+            w = m * pc * ri.W;
+        } else if (u_mis == 1) {
             // m_i(y_i) = M_i p_i(y_i) / sum_j M_j p_j(y_i); p_0 = pc.
             float num = 0.0, den = 0.0;
             for (int j = 0; j < n; ++j) {
@@ -113,7 +137,7 @@ void main() {
         }
         stream_add(str, ri.y, pc, w, rng_float(rng));
     }
-    Reservoir fin = stream_reservoir(str, M, u_mis == 1 ? 1.0 : M);
+    Reservoir fin = stream_reservoir(str, M, u_mis == 0 ? M : 1.0);
     if (fin.y != LIM_EMPTY_LIGHT_INDEX) {
         Light L = lights[fin.y];
         vec3 Ldir, d, sp;

@@ -5,7 +5,8 @@ per-frame HDR-FLIP (mid grey) and relMSE against the reference, temporal
 instability of each sequence, and optionally a strip of PNGs.
 
     .venv/bin/python tools/taa_orbit.py usd_scenes/default.usda --frames 60 \\
-        --width 320 --height 180 [--strip docs/images/taa] [--degrees 1.0] [--floors]
+        --width 320 --height 180 [--strip docs/images/taa] [--degrees 1.0] [--floors] \\
+        [-o KEY=VALUE ...]  # STB options of the raw and taa rows
 
 ``--floors`` also measures what bounds taa's figures from below, against the same
 per-frame reference: the exact lighting through the taa pass (its own error with
@@ -129,7 +130,9 @@ def main(argv=None) -> int:
     ap.add_argument(
         "--floors", action="store_true", help="also measure the lower bounds (module docstring)"
     )
+    ap.add_argument("--option", "-o", action="append", default=[], metavar="K=V", help="STB option")
     a = ap.parse_args(argv)
+    opts = dict(o.split("=", 1) for o in a.option)
     st = orbit_stage(a.stage, a.frames, a.degrees, a.pivot)
     cache = Path(a.ref_cache) if a.ref_cache else None
     if cache is not None and cache.exists():
@@ -140,12 +143,15 @@ def main(argv=None) -> int:
         ref, _ = render_sequence(st, a.frames, a.width, a.height, "reference", "off")
         if cache is not None:
             np.save(cache, ref)
-    raw, _ = render_sequence(st, a.frames, a.width, a.height, "stb", "off")
+    raw, _ = render_sequence(st, a.frames, a.width, a.height, "stb", "off", **opts)
     taa, taa_ms = render_sequence(
-        st, a.frames, a.width, a.height, "stb", "taa", taa_filter=a.taa_filter
+        st, a.frames, a.width, a.height, "stb", "taa", taa_filter=a.taa_filter, **opts
     )
     rows = {name: sequence_figures(seq, ref, a.skip) for name, seq in (("raw", raw), ("taa", taa))}
-    print(f"orbit {a.stage} {a.frames} frames {a.width}x{a.height} {a.degrees} deg/frame")
+    print(
+        f"orbit {a.stage} {a.frames} frames {a.width}x{a.height} {a.degrees} deg/frame"
+        f" {opts or 'STB defaults'}"
+    )
     print(
         f"frames {a.skip}..{a.frames - 1}: median HDR-FLIP, median relMSE,"
         " instability over the reference's"

@@ -188,9 +188,10 @@ OPTIONS = Schema(
         "reuse_mis",
         str,
         "balance",
-        choices=("count", "balance"),
-        doc="reuse: spatial MIS weights, count (the 1/M rule: cheap, biased) or balance "
-        "(generalized balance heuristic: unbiased, (k+1)^2 targets)",
+        choices=("count", "balance", "pairwise"),
+        doc="reuse: spatial MIS weights, count (the 1/M rule: cheap, biased), balance "
+        "(generalized balance heuristic: unbiased, (k+1)^2 targets) or pairwise (pairwise "
+        "MIS with confidences: unbiased, 2k+1 targets)",
     ),
     Opt(
         "reuse_visibility",

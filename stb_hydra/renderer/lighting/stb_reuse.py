@@ -53,7 +53,7 @@ CURRENT = "stb_reuse_cur"
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
-MIS_MODES = {"count": 0, "balance": 1}
+MIS_MODES = {"count": 0, "balance": 1, "pairwise": 2}
 
 
 def reuse_textures() -> tuple[Tex, ...]:
