@@ -81,6 +81,7 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({}, 3e-3),  # spatial reuse (temporal is off under accumulation: auto)
         ({"reuse_temporal": "on"}, 6e-3),  # frames correlated by the history: slower
         ({"reuse_k": 0}, 3e-3),  # the per-pixel resampling of the N candidates alone
+        ({"reuse_mis": "pairwise"}, 3e-3),  # pairwise MIS: also unbiased, 2k + 1 targets
     ],
 )
 def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):
@@ -290,6 +291,7 @@ def shadowed_scene() -> str:
         {"N": 1},
         {"reuse_mis": "count"},
         {"reuse_mis": "count", "reuse_visibility": True},
+        {"reuse_mis": "pairwise", "reuse_k": 8},
         {"select": "ris"},
         {"reuse_k": 8, "reuse_radius": 2.0},
         {"reuse_k": 0, "reuse_temporal": "off"},

@@ -21,7 +21,10 @@ power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
 resolution, exact at shadow/cone edges at ~4x the shadow-pass cost), ``select``
 ("all": every pixel shades its tile's N samples, the talk's; "quad"/"pixel": one of N
 independent picks per quad/pixel; "ris": each pixel resamples the N picks by a cheap
-target x the quad's term and shades one -- see docs/STB_NOTES.md, fourth pass).
+target x the quad's term and shades one -- see docs/STB_NOTES.md, fourth pass),
+``reuse`` (issue 31: per-pixel reservoirs resampled from the small tile's N samples and
+reused over frames and neighbours, ReSTIR-style, in place of the term and lighting
+passes; ``reuse_*`` options, ``lighting/stb_reuse.py``; off by default).
 
 Where we differ from the talk (see docs/STB_NOTES.md): the small-tile target is
 a defensive mixture ``p_hat + pdf_floor x mean(p_hat over the K candidates)``,
