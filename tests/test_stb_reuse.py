@@ -310,3 +310,19 @@ def test_no_nan_or_inf(gl_ctx, opts):
             assert img[..., :3].max() > 0.0
     finally:
         eng.release()
+
+
+def test_reuse_with_light_links_is_unbiased(gl_ctx):
+    """Light A linked to quad Q1 only (tests/test_links.py's scene): with reuse the
+    linked light is never shaded on Q2 -- its target there is 0, so neither the pixel's
+    own candidates nor its neighbours' reservoirs can bring it in -- and the mean of many
+    frames matches the reference with the same link on each quad within 2.5 %."""
+    from test_links import Q1_COLS, Q2_COLS, _links, _rel, _render, two_quads
+
+    o = {"method_options": dict(REUSE, weight_cap=None)}
+    st = two_quads(_links("/Geom/Q1"))
+    ref = _render(st, "reference")
+    got = _render(st, "stb", accumulate=48, **o)
+    for cols in (Q1_COLS, Q2_COLS, slice(None)):
+        assert abs(got[:, cols].mean() / ref[:, cols].mean() - 1.0) < 0.025, cols
+    assert _rel(got[:, Q2_COLS], ref[:, Q2_COLS]) < 0.05
