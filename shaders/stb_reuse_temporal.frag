@@ -24,6 +24,8 @@
 #include "common/lights.glsl"
 #include "common/links.glsl"
 #include "common/tiles.glsl"
+#define AREA_SHADOW_POINTS LIM_AREA_SHADOW_POINTS_STB
+#include "common/shadow.glsl"
 #include "common/reservoir.glsl"
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
@@ -38,6 +40,7 @@ uniform int u_history;           // 1: the previous frame's reservoirs are usabl
 uniform int u_remap;             // 1: FoV indices changed since the last frame
 uniform float u_m_cap;           // history confidence cap
 uniform float u_init_scale;      // 1 (streams) or 1/N (independent picks)
+uniform float u_shadow_floor;    // < 1: the initial resampling's target x (floor + (1 - floor) V)
 uniform int u_changes;           // lights changed since the last frame (<= LIM_REUSE_MAX_CHANGES)
 uniform vec4 u_change_spheres[LIM_REUSE_MAX_CHANGES];  // their influence: centre xyz, radius (m)
 uniform float u_change_caps[LIM_REUSE_MAX_CHANGES];    // history confidence cap inside
@@ -62,18 +65,28 @@ void main() {
     ivec2 st; int slot;
     quad_owner(px, st, slot);
     uvec4 smp = texelFetch(u_smalltile, st, 0);
-    Stream str = stream_empty();
+    // The initial resampling may weight its candidates by a cheap visibility as well
+    // (one hard shadow gather, u_shadow_floor < 1): its own reservoir (y0, W0 = sum w /
+    // p_init(y0)) is then combined with the history below under the common target p.
+    Stream ini = stream_empty();
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float Wj = sample_weight(smp[j]);
         if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
         float p = reuse_target(li, s, group);
-        stream_add(str, li, p, p * Wj * u_init_scale, rng_float(rng));
+        if (u_shadow_floor < 1.0 && p > 0.0) {
+            float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
+            p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
+        }
+        stream_add(ini, li, p, p * Wj * u_init_scale, rng_float(rng));
     }
-    // The initial reservoir on its own has M = 1 and W = sum w / p(y).
+    Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
+    Stream str = stream_empty();
     float M = 1.0;
-    // Its resampling weight in the 1/M combination below is p(y) W M = sum w: the stream
-    // already holds it.
+    if (r0.y != LIM_EMPTY_LIGHT_INDEX) {
+        float p0 = reuse_target(r0.y, s, group);
+        stream_add(str, r0.y, p0, p0 * r0.W, rng_float(rng));  // M0 = 1
+    }
     if (u_history == 1) {
         vec2 mv = texelFetch(u_motion, px, 0).xy - u_jitter;
         ivec2 q = ivec2(floor(gl_FragCoord.xy - mv));

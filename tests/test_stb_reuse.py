@@ -292,6 +292,7 @@ def shadowed_scene() -> str:
         {"reuse_mis": "count"},
         {"reuse_mis": "count", "reuse_visibility": True},
         {"reuse_mis": "pairwise", "reuse_k": 8},
+        {"reuse_shadow_floor": 0.1},
         {"select": "ris"},
         {"reuse_k": 8, "reuse_radius": 2.0},
         {"reuse_k": 0, "reuse_temporal": "off"},

@@ -197,6 +197,14 @@ OPTIONS = Schema(
         "MIS with confidences: unbiased, 2k+1 targets)",
     ),
     Opt(
+        "reuse_shadow_floor",
+        float,
+        1.0,
+        range=(0.0, 1.0),
+        doc="reuse: the initial resampling's target times (floor + (1 - floor) x one hard "
+        "shadow gather); 1: unshadowed (no gather); > 0 keeps it unbiased",
+    ),
+    Opt(
         "reuse_visibility",
         bool,
         False,

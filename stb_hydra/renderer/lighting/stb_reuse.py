@@ -252,6 +252,7 @@ class ReuseStage:
         one = o["select"] != "all"  # independent picks: each a whole estimate
         set_uniform(prog, "u_init_scale", 1.0 / int(o["N"]) if one else 1.0)
         set_uniform(prog, "u_eps", float(o["eps"]))
+        set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
         method._pass(frame, prog, [CURRENT], bufs.size)
 
         # 2. spatial reuse, visibility, shading, history
