@@ -327,3 +327,23 @@ def test_reuse_with_light_links_is_unbiased(gl_ctx):
     for cols in (Q1_COLS, Q2_COLS, slice(None)):
         assert abs(got[:, cols].mean() / ref[:, cols].mean() - 1.0) < 0.025, cols
     assert _rel(got[:, Q2_COLS], ref[:, Q2_COLS]) < 0.05
+
+
+def test_live_toggle(gl_ctx, many_lights):
+    """The previewer's path (``Engine.set_lighting``, what its options panel calls): reuse
+    switched on and off on a live engine renders finite images, and the reuse's history
+    builds up while it is on."""
+    stage, _ = many_lights
+    eng = Engine(stage, RenderSettings(width=64, height=36, lighting="stb", temporal="off"))
+    try:
+        eng.render()
+        eng.set_lighting("stb", **REUSE)
+        for _ in range(3):
+            eng.render()
+            assert np.isfinite(eng.aovs["color"]).all()
+        assert eng.method.reuse.count == 3  # type: ignore[attr-defined]
+        eng.set_lighting("stb", reuse=False)
+        eng.render()
+        assert np.isfinite(eng.aovs["color"]).all()
+    finally:
+        eng.release()
