@@ -347,3 +347,103 @@ def test_live_toggle(gl_ctx, many_lights):
         assert np.isfinite(eng.aovs["color"]).all()
     finally:
         eng.release()
+
+
+# --- through taa (tests/test_temporal.py's checks, with reuse) --------------------------
+
+
+def test_taa_light_switched_off_vanishes_within_two_frames(gl_ctx):
+    """tests/test_temporal.py's switched-off light with reuse on under taa (reservoir
+    history on): 2 frames after the brightest light is set to 0 its light is gone (within
+    10 % of its contribution where it shone)."""
+    from test_temporal import _lit_floor, _render_one
+
+    stage = _lit_floor()
+    on = _render_one(stage, "reference")
+    settings = RenderSettings(
+        width=96, height=54, lighting="stb", temporal="taa", method_options=REUSE
+    )
+    eng = Engine(stage, settings)
+    try:
+        for _ in range(12):
+            eng.render()
+        stage.GetPrimAtPath("/L2").GetAttribute("inputs:intensity").Set(0.0)
+        after = []
+        for _ in range(2):
+            eng.render()
+            after.append(eng.aovs["color"][..., :3].copy())
+    finally:
+        eng.release()
+    off = _render_one(stage, "reference")
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    contrib = (on - off) @ lum
+    mask = contrib > 0.3 * (on @ lum)
+    assert mask.sum() > 50
+    left = [((a - off) @ lum)[mask].mean() / contrib[mask].mean() for a in after]
+    assert abs(left[-1]) < 0.1, left
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 31 acceptance not met: settles in 9 frames (reservoir history on; 18 "
+    "with reuse_temporal=off, 9 with reuse_m_cap=8) -- the still level it must reach is "
+    "much lower with reuse than without, and the uncovered floor restarts both histories",
+)
+def test_taa_sliding_box_leaves_no_trail(gl_ctx):
+    """tests/test_temporal.py's sliding box with reuse on under taa: the error in the
+    floor the box uncovered is back to the still level (the same region with the box
+    parked at its final place, x 1.5) within 8 frames of the uncovering, averaged over
+    three seeds; the yardstick is STB with reuse itself, 64 accumulated frames of the
+    final state."""
+    from test_temporal import SLIDE_SEEDS, _box_track, _lit_floor
+
+    from stb_hydra.metrics import frames_to_settle, region_error
+
+    frames, w, h = 30, 96, 54
+    stage = _lit_floor(_box_track(frames))
+    times = [1 + i for i in range(frames)]
+    OPTS = REUSE
+
+    def sequence(st, temporal: str, seed: int = 0, aov: bool = False, **kw):
+        settings = RenderSettings(
+            width=w,
+            height=h,
+            lighting=kw.get("lighting", "stb"),
+            temporal=temporal,
+            seed=seed,
+            method_options=OPTS if kw.get("lighting", "stb") == "stb" else {},
+        )
+        eng = Engine(st, settings)
+        out, depth_maps = [], []
+        try:
+            if aov:
+                eng.request_aovs({"depth"})
+            for t in times:
+                eng.render(time=t)
+                out.append(eng.aovs["color"][..., :3].copy())
+                if aov:
+                    depth_maps.append(eng.aovs["depth"].reshape(h, w).copy())
+        finally:
+            eng.release()
+        return np.array(out), depth_maps
+
+    _, geo = sequence(stage, "off", aov=True, lighting="reference")
+    uncovered = (geo[11] > 0) & (geo[11] < geo[-1] - 0.3)
+    assert uncovered.sum() > 30
+    eng = Engine(stage, RenderSettings(width=w, height=h, lighting="stb", method_options=OPTS))
+    try:
+        eng.render(time=frames, accumulate=64)
+        settled = eng.aovs["color"][..., :3].copy()
+    finally:
+        eng.release()
+    refs = np.repeat(settled[None], frames, axis=0)
+    still_stage = _lit_floor(_box_track(frames, moving=False))
+    err, still_err = np.zeros(frames), np.zeros(frames)
+    for seed in SLIDE_SEEDS:
+        moving, _ = sequence(stage, "taa", seed)
+        still, _ = sequence(still_stage, "taa", seed)
+        err += region_error(moving, refs, uncovered) / len(SLIDE_SEEDS)
+        still_err += region_error(still, refs, uncovered) / len(SLIDE_SEEDS)
+    level = 1.5 * float(np.median(still_err[13:]))
+    settle = frames_to_settle(err[13:], level)
+    assert settle <= 8, (settle, err[13:].round(3).tolist(), level)
