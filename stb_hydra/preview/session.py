@@ -47,7 +47,7 @@ from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import render_from_stage_matrix
 from .atlas_view import AtlasView
 from .camera import OrbitCamera
-from .picking import Picker
+from .picking import Picker, instance_bounds, instance_rows
 
 #: Temporal modes of the previewer (``auto``: accumulate while still, taa while moving).
 TEMPORAL_MODES = ("auto", "accumulate", "taa", "off")
@@ -570,7 +570,7 @@ class PreviewSession:
             return p - r, p + r
         prim = self.stage.GetPrimAtPath(path)
         if not prim or not prim.IsValid():
-            return None
+            return instance_bounds(self.engine.delegate, path)  # a picked point instance
         cache = UsdGeom.BBoxCache(
             Usd.TimeCode(self.engine.scene_index.time),
             [UsdGeom.Tokens.default_, UsdGeom.Tokens.render, UsdGeom.Tokens.proxy],
@@ -877,7 +877,7 @@ class PreviewSession:
         assert self.engine is not None
         prim = self.stage.GetPrimAtPath(path)
         if not prim:
-            return []
+            return instance_rows(self.engine.delegate, path)  # a picked point instance
         rows: list[tuple[str, str]] = [("type", prim.GetTypeName() or "-")]
         lp = self._light(path)
         if lp is not None:

@@ -184,6 +184,12 @@ class MeshPrim:
     #: (k, 4, 4) per-instance transforms (render frame) -- PointInstancer / shared
     #: prototypes. ``None`` = one instance with ``transform``.
     instance_transforms: np.ndarray | None = None
+    #: PointInstancer of a prototype mesh, the instance id of each row of
+    #: ``instance_transforms`` and the mesh's path below the prototype root's parent
+    #: (``scene.instancing.instance_light_path`` names one instance by them).
+    instancer: str | None = None
+    instance_ids: np.ndarray | None = None
+    instance_rel_path: str = ""
     display_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
     #: (n, 3) per-vertex colour when displayColor varies over the mesh, else None.
     vertex_colors: np.ndarray | None = None
