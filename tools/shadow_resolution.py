@@ -65,7 +65,7 @@ def _render(scene: str, width: int, height: int, frames: int, scale: float) -> d
         policy.target_texels = orig  # type: ignore[assignment]
     return {
         "img": img,
-        "maps": int(len(sides)),
+        "maps": len(sides),
         "side_median": float(np.median(sides)) if len(sides) else 0.0,
         "side_max": int(sides.max()) if len(sides) else 0,
         "side_min": int(sides.min()) if len(sides) else 0,
