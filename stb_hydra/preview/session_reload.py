@@ -9,13 +9,25 @@ from __future__ import annotations
 import os
 import threading
 import time as _time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .session_state import SessionState
+
+if TYPE_CHECKING:
+    from watchdog.events import FileSystemEvent
 
 #: Live reload: a changed layer is reloaded once its file has been quiet this long (s);
 #: editors often write a file in several steps.
 RELOAD_SETTLE_S = 0.2
+
+#: watchdog events that do not change a file: reading a layer (ours, on every reload)
+#: opens and closes it, and counting those queued a reload of our own every 0.25 s.
+_READ_ONLY_EVENTS = frozenset({"opened", "closed_no_write"})
+
+
+def changes_file(event: FileSystemEvent) -> bool:
+    """Does this watchdog event write, create, move or delete its file?"""
+    return event.event_type not in _READ_ONLY_EVENTS
 
 
 class LiveReload(SessionState):
@@ -39,7 +51,7 @@ class LiveReload(SessionState):
         if not self.ok or self._observer is not None:
             return False
         try:
-            from watchdog.events import FileSystemEvent, FileSystemEventHandler
+            from watchdog.events import FileSystemEventHandler
             from watchdog.observers import Observer
         except ImportError:
             self.message = "live reload needs watchdog (the preview extra)"
@@ -49,6 +61,8 @@ class LiveReload(SessionState):
 
         class _Handler(FileSystemEventHandler):
             def on_any_event(self, event: FileSystemEvent) -> None:
+                if not changes_file(event):
+                    return
                 for p in (event.src_path, getattr(event, "dest_path", "")):
                     if not p:
                         continue
