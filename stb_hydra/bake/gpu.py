@@ -32,7 +32,7 @@ from ..renderer.frame import FrameContext
 from ..renderer.fullscreen import draw_fullscreen
 from ..renderer.gl import park, set_uniform, shader_library
 from ..renderer.graph import Imported
-from ..renderer.lighting.base import READS
+from ..renderer.lighting.base import GBUFFER_INPUTS, READS
 from ..renderer.lighting.reference import ReferenceLighting
 from ..renderer.records import InViewLights, LightBuffer
 from ..renderer.tasks.base import Pass
@@ -92,7 +92,8 @@ class LightmapBakePass(Pass):
     """Bakes every layout in ``layouts`` (results in ``self.maps`` by prim path)."""
 
     name = "lightmap_bake"
-    reads = (*READS, Imported("meshes"))
+    # The lighting inputs less the G-buffer: nothing of the view is drawn for a bake.
+    reads = (*(r for r in READS if r not in GBUFFER_INPUTS), Imported("meshes"))
     writes = ()
     side_effect = True
 
@@ -248,11 +249,19 @@ def run_bake_frame(
     layouts: list[MeshLayout],
     progress: Callable[[MeshLayout], None] | None = None,
 ) -> LightmapBakePass:
-    """One frame of ``engine`` with the bake's light cull and bake pass in its graph."""
+    """One frame of ``engine`` with the bake's light cull and bake pass in its graph.
+
+    The view's side-effect passes (colour correction, AOV output) leave the graph, so
+    the graph culls the G-buffer, lighting and accumulation too: only the light cull,
+    shadow atlas, light upload and frame uniforms run before the bake. (Kept, the
+    view's 1080p reference frame of every static light cost as much as the bake
+    itself: 153 s of the 228 s of issue 35's scene.)"""
     ps = engine._set  # the engine's pass list; the bake swaps one pass and adds one
     bake = LightmapBakePass(engine.delegate, layouts, progress)
     ps.passes = [
-        StaticLightCull(engine.delegate) if p.name == "light_cull" else p for p in ps.passes
+        StaticLightCull(engine.delegate) if p.name == "light_cull" else p
+        for p in ps.passes
+        if not p.side_effect
     ]
     ps.passes.append(bake)
     engine._graph = None
