@@ -361,3 +361,23 @@ def test_baked_implicit_shapes_render_like_the_reference(tmp_path, gl_ctx):
     rel = np.abs(img[lit] - ref[lit]).mean() / ref[lit].mean()
     assert rel < 0.03, f"shapes: mean relative difference {rel:.4f}"
     assert abs(img[shapes].mean() / ref[shapes].mean() - 1.0) < 0.02
+
+
+def test_mesh_lights_keeps_exactly_the_lights_whose_range_reaches_the_box():
+    """``gpu.mesh_lights`` against the distance from each light to its closest point of
+    the mesh's bounding box (np.clip), over random lights: inside the range kept, out
+    of it dropped; none at all gives an empty list."""
+    from stb_hydra.bake.gpu import mesh_lights
+
+    rng = np.random.default_rng(3)
+    P = rng.uniform([-2, 0, -1], [3, 2, 4], (40, 3, 3))
+    lo, hi = P.reshape(-1, 3).min(0), P.reshape(-1, 3).max(0)
+    pos = rng.uniform(-20, 20, (500, 3))
+    r = rng.uniform(0.1, 15, 500)
+    dist = np.linalg.norm(pos - np.clip(pos, lo, hi), axis=1)
+    got = mesh_lights(pos, r, P)
+    assert got.dtype == np.uint32 and np.all(np.diff(got.astype(np.int64)) > 0)
+    clear = np.abs(dist - r) > 1e-3  # away from the boundary: no rounding question
+    np.testing.assert_array_equal(np.isin(np.arange(500), got)[clear], (dist <= r)[clear])
+    assert 50 < len(got) < 450
+    assert len(mesh_lights(np.zeros((0, 3)), np.zeros(0), P)) == 0

@@ -9,9 +9,10 @@ rendered with the reference method against the unbaked stage.
 that height does, so baked and unbaked images differ by the lightmaps only (a bake at
 1080p compared with a 360p reference also differs by the reference's coarser shadow
 maps). Prints and writes OUTDIR/bake_yard.json: the bake's seconds (unwrap, GPU,
-write), texels, the texel-light throughput (lightmap texels x baked lights / GPU
-seconds), the achieved density per mesh (min, max) and HDR-FLIP, relMSE and the
-mean ratio of the baked image; PNGs of both renders.
+write), texels, the texel-light throughput (sum over meshes of lightmap texels x
+the baked lights whose range reaches the mesh, / GPU seconds), the achieved density
+per mesh (min, max) and HDR-FLIP, relMSE and the mean ratio of the baked image; PNGs
+of both renders.
 """
 
 from __future__ import annotations
@@ -76,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
         "density_min": min(dens),
         "density_max": max(dens),
         "bake_s": rep.seconds,
-        "texel_lights_per_s": rep.texels * len(rep.lights) / rep.seconds["gpu"],
+        "texel_lights_in_range": rep.texel_lights,
+        "texel_lights_per_s": rep.texel_lights / rep.seconds["gpu"],
         "render_unbaked_s": t1 - t0,
         "render_baked_s": t2 - t1,
         "flip_hdr": flip_hdr_midgrey(img, ref),

@@ -87,6 +87,9 @@ class BakeReport:
     #: Per baked mesh: (width, height) of its lightmap in texels and the texel density
     #: it achieves (texels per metre, measured on its UVs: ``unwrap.achieved_density``).
     densities: dict[str, tuple[int, int, float]] = field(default_factory=dict)
+    #: Sum over baked meshes of lightmap texels x the static lights whose range reaches
+    #: the mesh (what the GPU bake's time follows; ``gpu.mesh_lights``).
+    texel_lights: int = 0
 
 
 def light_fingerprint(prim: Usd.Prim, time_code: Usd.TimeCode | None = None) -> str:
@@ -192,6 +195,7 @@ def bake_stage(
             if bar is not None:
                 bar.close()
             maps = bake.maps
+            rep.texel_lights = bake.texel_lights
         rep.seconds["gpu"] = time.perf_counter() - t2
         t3 = time.perf_counter()
         _write_outputs(stage, scene_p, out_p, layouts, maps, light_paths, tc, rep)
