@@ -203,6 +203,41 @@ def test_implicit_shape_that_cannot_be_unwrapped_is_refused():
         _layout(stage, "/S", 16.0)
 
 
+@pytest.mark.gl
+def test_unbakeable_implicit_shape_warns_once_and_stays_dynamic(tmp_path, gl_ctx):
+    """In a bake, a zero-size Cube beside a good one: one warning line naming it, no
+    lightmap on it, the good cube and the ground baked; the baked stage renders with
+    no NaN."""
+    from stagegen import LAMBERT_FLOOR_USDA
+
+    import stb_hydra
+    from stb_hydra.bake import bake_stage
+
+    light = (
+        'def Cube "Good"\n{\n    double size = 1\n    double3 xformOp:translate = (0, 0.5, 0)\n'
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+        'def Cube "Flat"\n{\n    double size = 0\n}\n'
+        'def SphereLight "L" (\n    prepend apiSchemas = ["StbLightAPI"]\n)\n{\n'
+        "    float inputs:intensity = 3000\n    float inputs:radius = 0.1\n"
+        '    uniform token stb:mobility = "static"\n'
+        "    double3 xformOp:translate = (1, 2, 0.5)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    src = tmp_path / "s.usda"
+    src.write_text(LAMBERT_FLOOR_USDA.format(rho=0.5, light=light))
+    out = tmp_path / "b.usda"
+    warnings: list[str] = []
+    rep = bake_stage(
+        src, out, texel_density=4.0, cache_dir=tmp_path / "c", progress=False, warn=warnings.append
+    )
+    assert sorted(rep.meshes) == ["/Good", "/Ground"]
+    flat = [w for w in warnings if "</Flat>" in w]
+    assert len(flat) == 1 and "\n" not in flat[0] and "lit dynamically" in flat[0], warnings
+    assert not Usd.Stage.Open(str(out)).GetPrimAtPath("/Flat").GetAttribute("stb:lightmap:file")
+    img = stb_hydra.render(str(out), width=W, height=H, lighting="reference")
+    assert np.isfinite(img).all() and img.max() > 0
+
+
 W, H = 160, 90
 
 
