@@ -431,6 +431,13 @@ BAKE_TEXEL_DENSITY_DEFAULT = 16.0
 #: density is packed at a lower one (with a warning): GL_MAX_TEXTURE_SIZE is >= 8192
 #: on every GL 4.3 driver, 4096 keeps one lightmap <= 128 MiB at the bake's RGBA32F.
 BAKE_LIGHTMAP_MAX_SIZE = 4096
+#: The lightmap density a mesh gets (texels per metre measured on its UVs) may differ
+#: from the one asked by this fraction; past it xatlas packs again at a corrected
+#: ``texels_per_unit`` (its charts are stretched and rounded up to whole texels: small
+#: dense props came out ~15 % too dense), at most BAKE_DENSITY_PASSES packings in all
+#: (including those that lower the density to fit BAKE_LIGHTMAP_MAX_SIZE).
+BAKE_DENSITY_TOLERANCE = 0.03
+BAKE_DENSITY_PASSES = 8
 #: Triangles above which a mesh is not unwrapped (lit dynamically, warned): xatlas's
 #: chart growing is super-linear; 200 k triangles take ~1 min on one core.
 BAKE_MAX_TRIANGLES = 200_000

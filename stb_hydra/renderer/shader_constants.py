@@ -49,6 +49,9 @@ SSBO_STB_CLUSTER_RECORDS = 7
 #: Light linking (``LightBuffer.link_ssbo``, common/links.glsl): the distant lights'
 #: masks, ambient per link group, then one mask per in-view light (light-buffer order).
 SSBO_LIGHT_LINKS = 8
+#: ``stb bake``: the light-buffer indices of the lights whose range reaches the mesh
+#: being baked (bake_light.frag; bake/gpu.py).
+SSBO_BAKE_LIGHTS = 9
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -210,6 +213,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
         "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
+        "SSBO_BAKE_LIGHTS": str(SSBO_BAKE_LIGHTS),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),
