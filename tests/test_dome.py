@@ -1,0 +1,236 @@
+"""Textured DomeLights (issue 37): closed forms on a real GL context.
+
+* The half-sky sphere: a lat-long dome whose upper hemisphere has radiance 1 and
+  lower hemisphere 0 over a Lambert sphere (albedo 0.5) seen from the side. The
+  unshadowed irradiance is E(n) = pi L (1 + n.y) / 2, so the sphere's radiance is
+  albedo L (1 + n.y) / 2; the sky seen behind it is the texture.
+* Formats and orientation: the same half sky authored as a mirrored ball, an angular
+  map and a vertical cross, and rotated by ``poleAxis`` / the stage's up axis, must
+  light the sphere the same way.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+from pxr import Gf, Usd, UsdGeom
+from stagegen import usda_stage
+
+import stb_hydra
+from stb_hydra.renderer.delegate import RenderDelegate
+from stb_hydra.renderer.render_index import RenderIndex
+from stb_hydra.scene import dome
+from stb_hydra.scene.stage_scene_index import StageSceneIndex
+
+W, H = 128, 72
+ALBEDO = 0.5
+
+SPHERE_USDA = """#usda 1.0
+(
+    metersPerUnit = 1
+    upAxis = "{up}"
+)
+def Camera "Cam"
+{{
+    float focalLength = 35
+    float horizontalAperture = 36
+    float verticalAperture = 20.25
+    float2 clippingRange = (0.1, 100)
+    double3 xformOp:translate = (0, 0, 6)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}}
+def Sphere "Ball" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{{
+    double radius = 1
+    rel material:binding = </Looks/Lambert>
+}}
+def Scope "Looks"
+{{
+    def Material "Lambert"
+    {{
+        token outputs:surface.connect = </Looks/Lambert/PBR.outputs:surface>
+        def Shader "PBR"
+        {{
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor = ({albedo}, {albedo}, {albedo})
+            int inputs:useSpecularWorkflow = 1
+            color3f inputs:specularColor = (0, 0, 0)
+            float inputs:roughness = 1
+            token outputs:surface
+        }}
+    }}
+}}
+{dome}
+"""
+
+
+def write_exr(path: Path, img: np.ndarray) -> str:
+    """Write a float RGB image (h, w, 3) with OIIO; returns the path as text."""
+    h, w = img.shape[:2]
+    out = oiio.ImageOutput.create(str(path))
+    assert out is not None
+    out.open(str(path), oiio.ImageSpec(w, h, 3, oiio.FLOAT))
+    out.write_image(np.ascontiguousarray(img, dtype=np.float32))
+    out.close()
+    return str(path)
+
+
+def half_sky(h: int = 64, w: int = 128) -> np.ndarray:
+    """Lat-long map: radiance 1 above the horizon, 0 below."""
+    d = dome.latlong_directions(h, w)
+    return np.repeat((d[..., 1:2] > 0).astype(np.float32), 3, axis=2)
+
+
+def dome_usda(path: str, fmt: str = "latlong", extra: str = "", kind: str = "DomeLight") -> str:
+    return (
+        f'def {kind} "Dome"\n{{\n    asset inputs:texture:file = @{path}@\n'
+        f'    token inputs:texture:format = "{fmt}"\n{extra}}}\n'
+    )
+
+
+def pixel_rays(stage: Usd.Stage) -> tuple[np.ndarray, np.ndarray]:
+    """(origins, unit directions) (H, W, 3) of the camera's pixel-centre rays."""
+    fr = UsdGeom.Camera(stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode.Default()).frustum
+    o = np.zeros((H, W, 3))
+    d = np.zeros((H, W, 3))
+    for j in range(H):
+        for i in range(W):
+            ray = fr.ComputePickRay(Gf.Vec2d(2 * (i + 0.5) / W - 1, 1 - 2 * (j + 0.5) / H))
+            o[j, i] = np.array(ray.startPoint)
+            dd = np.array(ray.direction)
+            d[j, i] = dd / np.linalg.norm(dd)
+    return o, d
+
+
+def sphere_normals(o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Unit normals where the rays hit the unit sphere at the origin, NaN elsewhere."""
+    b = np.sum(o * d, axis=-1)
+    c = np.sum(o * o, axis=-1) - 1.0
+    disc = b * b - c
+    t = -b - np.sqrt(np.maximum(disc, 0.0))
+    n = o + t[..., None] * d
+    return np.where((disc > 0)[..., None], n, np.nan)
+
+
+def interior(hit: np.ndarray) -> np.ndarray:
+    """Hit pixels whose 8 neighbours hit too (no silhouette pixels)."""
+    m = hit.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            m &= np.roll(np.roll(hit, dy, axis=0), dx, axis=1)
+    return m
+
+
+def check_half_sky(img: np.ndarray, stage: Usd.Stage, up: np.ndarray) -> tuple[float, float]:
+    """(median relative error over the lit sphere, max relative sky error)."""
+    o, d = pixel_rays(stage)
+    n = sphere_normals(o, d)
+    hit = np.isfinite(n[..., 0])
+    ny = np.nan_to_num(n @ up)
+    expect = ALBEDO * (1.0 + ny) / 2.0
+    lit = interior(hit) & (expect > 0.05 * ALBEDO)
+    y = img[..., 1]
+    rel = np.abs(y[lit] - expect[lit]) / expect[lit]
+    # The sky behind: 1 above the horizon, 0 below (texels next to it blend).
+    dy = d @ up
+    sky = ~interior(~hit) | hit
+    above = ~sky & (dy > 0.05)
+    below = ~sky & (dy < -0.05)
+    sky_err = max(
+        float(np.abs(y[above] - 1.0).max(initial=0.0)), float(np.abs(y[below]).max(initial=0.0))
+    )
+    return float(np.median(rel)), sky_err
+
+
+def test_half_sky_sphere_matches_closed_form(gl_ctx, tmp_path):
+    tex = write_exr(tmp_path / "halfsky.exr", half_sky())
+    stage = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex)))
+    for method in ("reference", "stb", "tiled", "clustered", "lighttree", "sun"):
+        img = stb_hydra.render(stage, width=W, height=H, lighting=method)
+        assert np.isfinite(img).all()
+        med, sky = check_half_sky(img, stage, np.array([0.0, 1.0, 0.0]))
+        assert med <= 0.05, f"{method}: median relative error {med:.3f}"
+        assert sky <= 0.05, f"{method}: sky differs from the texture by {sky:.3f}"
+
+
+def test_uniform_dome_is_unchanged_and_mean_is_kept(gl_ctx, tmp_path):
+    """A constant texture of 0.5 lights like an untextured dome of intensity 0.5."""
+    tex = write_exr(tmp_path / "grey.exr", np.full((32, 64, 3), 0.5, np.float32))
+    staged = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex)))
+    uniform = 'def DomeLight "Dome" {\n    float inputs:intensity = 0.5\n}\n'
+    plain = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=uniform))
+    a = stb_hydra.render(staged, width=64, height=36)
+    b = stb_hydra.render(plain, width=64, height=36)
+    assert np.allclose(a, b, rtol=0.02, atol=1e-3)
+
+
+def _ball_image(angular: bool, n: int = 128) -> np.ndarray:
+    """The half sky as a mirrored ball / angular map (centre +Z, rim -Z)."""
+    y, x = np.mgrid[0:n, 0:n]
+    px = (x + 0.5) / n * 2 - 1
+    py = 1 - (y + 0.5) / n * 2
+    r = np.hypot(px, py)
+    ang = r * math.pi if angular else 2 * np.arcsin(np.clip(r, 0, 1))
+    phi = np.arctan2(py, px)
+    dy = np.sin(ang) * np.sin(phi)
+    img = (dy > 0).astype(np.float32)
+    return np.repeat(img[..., None], 3, axis=2)
+
+
+def _cross_image(f: int = 48) -> np.ndarray:
+    """The half sky as a vertical cross: the +Y face white, the side faces' upper
+    halves white (rows above the centre line), the rest black."""
+    img = np.zeros((4 * f, 3 * f, 3), np.float32)
+    img[0:f, f : 2 * f] = 1.0  # +Y
+    img[f : f + f // 2, 0 : 3 * f] = 1.0  # upper halves of -X, -Z, +X
+    img[3 * f + f // 2 : 4 * f, f : 2 * f] = 1.0  # +Z, stored upside down
+    return img
+
+
+@pytest.mark.parametrize("fmt", ["mirroredBall", "angular", "cubeMapVerticalCross"])
+def test_formats_give_the_half_sky(gl_ctx, tmp_path, fmt):
+    if fmt == "cubeMapVerticalCross":
+        img = _cross_image()
+    else:
+        img = _ball_image(fmt == "angular")
+    tex = write_exr(tmp_path / f"{fmt}.exr", img)
+    stage = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex, fmt)))
+    out = stb_hydra.render(stage, width=W, height=H)
+    med, sky = check_half_sky(out, stage, np.array([0.0, 1.0, 0.0]))
+    assert med <= 0.05, f"{fmt}: median relative error {med:.3f}"
+    assert sky <= 0.05, f"{fmt}: sky differs from the texture by {sky:.3f}"
+
+
+def test_pole_axis_and_stage_up_axis(gl_ctx, tmp_path):
+    """DomeLight_1 with poleAxis "scene" on a Z-up stage: the sky's pole is the stage's
+    +Z (the unrotated camera looks down -Z onto the lit cap; every background ray goes
+    below the horizon: black)."""
+    tex = write_exr(tmp_path / "halfsky.exr", half_sky())
+    stage = usda_stage(
+        SPHERE_USDA.format(up="Z", albedo=ALBEDO, dome=dome_usda(tex, kind="DomeLight_1"))
+    )
+    img = stb_hydra.render(stage, width=W, height=H)
+    # The stage's own rays and normals, "up" the stage's +Z.
+    med, _ = check_half_sky(img, stage, np.array([0.0, 0.0, 1.0]))
+    assert med <= 0.05, f"poleAxis scene on Z-up: median relative error {med:.3f}"
+
+
+def test_missing_texture_warns_once_and_falls_back(gl_ctx, tmp_path):
+    stage = usda_stage(
+        SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(str(tmp_path / "nope.exr")))
+    )
+    si = StageSceneIndex(stage)
+    ri = RenderIndex(si, RenderDelegate())
+    ri.sync_all()
+    lp = ri.delegate.lights["/Dome"].light
+    assert lp is not None and lp.dome_map is None
+    assert len([w for w in lp.warnings if "nope.exr" in w]) == 1
+    assert np.allclose(lp.intensity, 1.0)
+    img = stb_hydra.render(stage, width=64, height=36)
+    assert np.isfinite(img).all() and img.max() > 0
