@@ -309,3 +309,51 @@ def load_dome_map(path: str, fmt: str, rotation: np.ndarray, color_space: str = 
         _cache.pop(next(iter(_cache)))
     _cache[key] = dm
     return dm
+
+
+# --- importance sampling (the reference method) ---------------------------------------------
+
+
+class DomeSampler:
+    """Directions drawn in proportion to a lat-long map's luminance x solid angle (a
+    CDF over rows, then over the texels of the row), uniform in solid angle
+    inside the chosen texel; ``pdf`` per steradian. Built once per map."""
+
+    def __init__(self, img: np.ndarray) -> None:
+        h, w = img.shape[:2]
+        self.h, self.w = h, w
+        lum = np.maximum(img.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722]), 0.0)
+        sa = texel_solid_angles(h, w)
+        # A floor keeps every texel reachable (pdf > 0 where the map is not black).
+        weight = lum * sa[:, None]
+        total = float(weight.sum())
+        if not (total > 0 and math.isfinite(total)):
+            weight = np.broadcast_to(sa[:, None], (h, w)).copy()
+            total = float(weight.sum())
+        self.p_texel = weight / total  # probability of each texel
+        row = np.cumsum(self.p_texel.sum(axis=1))
+        self.row_cdf = row / row[-1]
+        cols = np.cumsum(self.p_texel, axis=1)
+        cols = cols / np.maximum(cols[:, -1:], 1e-300)
+        # Row r's conditional CDF shifted by r: one increasing array for every row.
+        self.col_keys = (np.arange(h)[:, None] + cols).ravel()
+        self.sa = sa
+        self.img = img
+
+    def sample(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Directions for uniform numbers ``u`` (n, 4) in [0, 1) (row, column, then the
+        point inside the texel): (unit directions
+        (n, 3) render frame, map radiance (n, 3), pdf (n,) per steradian)."""
+        h, w = self.h, self.w
+        r = np.clip(np.searchsorted(self.row_cdf, u[:, 0], side="right"), 0, h - 1)
+        k = np.searchsorted(self.col_keys, r + np.minimum(u[:, 1], 1.0 - 1e-12), side="right")
+        c = np.clip(k - r * w, 0, w - 1)
+        # Uniform in solid angle inside the texel: uniform in sin(latitude) and longitude.
+        lat_hi = math.pi / 2 - math.pi * r / h
+        lat_lo = math.pi / 2 - math.pi * (r + 1) / h
+        s = np.sin(lat_lo) + u[:, 2] * (np.sin(lat_hi) - np.sin(lat_lo))
+        lon = math.pi - 2.0 * math.pi * (c + u[:, 3]) / w
+        cl = np.sqrt(np.maximum(1.0 - s * s, 0.0))
+        d = np.stack([cl * np.sin(lon), s, cl * np.cos(lon)], axis=-1)
+        pdf = self.p_texel[r, c] / self.sa[r]
+        return d, self.img[r, c].astype(np.float64), pdf
