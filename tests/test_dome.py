@@ -160,13 +160,14 @@ def test_half_sky_sphere_matches_closed_form(gl_ctx, tmp_path):
 
 
 def test_uniform_dome_is_unchanged_and_mean_is_kept(gl_ctx, tmp_path):
-    """A constant texture of 0.5 lights like an untextured dome of intensity 0.5."""
+    """A constant texture of 0.5 lights like an untextured dome of intensity 0.5 (the
+    prefiltered path: SH9 irradiance against the uniform dome's closed form)."""
     tex = write_exr(tmp_path / "grey.exr", np.full((32, 64, 3), 0.5, np.float32))
     staged = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex)))
     uniform = 'def DomeLight "Dome" {\n    float inputs:intensity = 0.5\n}\n'
     plain = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=uniform))
-    a = stb_hydra.render(staged, width=64, height=36)
-    b = stb_hydra.render(plain, width=64, height=36)
+    a = stb_hydra.render(staged, width=64, height=36, lighting="sun")
+    b = stb_hydra.render(plain, width=64, height=36, lighting="sun")
     assert np.allclose(a, b, rtol=0.02, atol=1e-3)
 
 
@@ -329,14 +330,25 @@ def test_sun_and_sky_matches_mitsuba(gl_ctx, tmp_path):
     tex = write_exr(tmp_path / "sunsky.exr", sun_and_sky())
     stage = usda_stage(BOXES_USDA.format(tex=tex, intensity=0.5))
     w, h = 128, 72
-    ref, hit, light, normals = render_mitsuba(stage, w, h, spp=64, emitter_samples=4)
+    ref, hit, light, normals = render_mitsuba(stage, w, h, spp=64, emitter_samples=16)
     ours = stb_hydra.render(stage, width=w, height=h, lighting="reference", accumulate=16)
     errs, mask, _ = compare(ours, ref, hit, light, normals)
     assert mask.sum() > 0.5 * w * h
     med, p95 = float(np.median(errs)), float(np.percentile(errs, 95))
     assert med <= 0.03, f"median {med:.4f}"
     assert p95 <= 0.15, f"p95 {p95:.4f}"
-    # The boxes' shadows are in both: the darkest floor pixels are well under the lit ones.
-    y = ref @ np.array([0.2126, 0.7152, 0.0722])
-    floor = hit == np.bincount(hit[hit >= 0]).argmax()
-    assert np.percentile(y[floor], 2) < 0.5 * np.percentile(y[floor], 50)
+    # The sun's shadows of the boxes: floor pixels Mitsuba has under 30 % of the floor's
+    # median (umbra; a penumbra pixel's area average differs from its centre) are as
+    # dark in ours (unshadowed they are about 3 times as bright). Mitsuba's own noise
+    # there, lit by the sky alone, is several per cent.
+    assert shadow_error(ours, ref, hit, mask) <= 0.12
+
+
+def shadow_error(ours: np.ndarray, ref: np.ndarray, hit: np.ndarray, mask: np.ndarray) -> float:
+    """Median relative luminance error over the floor's shadowed pixels (at least 20)."""
+    lum = np.array([0.2126, 0.7152, 0.0722])
+    yr, yo = ref @ lum, ours @ lum
+    floor = (hit == np.bincount(hit[hit >= 0]).argmax()) & mask
+    shadow = floor & (yr < 0.3 * np.median(yr[floor]))
+    assert shadow.sum() >= 20, f"only {shadow.sum()} shadowed floor pixels"
+    return float(np.median(np.abs(yo[shadow] - yr[shadow]) / yr[shadow]))

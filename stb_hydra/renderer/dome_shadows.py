@@ -25,7 +25,6 @@ from .gl import set_uniform
 from .gl_delegate import GLRenderDelegate
 from .link_masks import shadow_batches
 
-
 #: The golden ratio's fractional part (the Fibonacci lattice's second axis step).
 _GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -52,8 +51,8 @@ class DomeShadowMaps:
         self._sampler: DomeSampler | None = None
         self._map: DomeMap | None = None
         n = limits.DOME_REFERENCE_SAMPLES
-        self.cols = int(math.ceil(math.sqrt(n)))
-        self.rows = int(math.ceil(n / self.cols))
+        self.cols = math.ceil(math.sqrt(n))
+        self.rows = math.ceil(n / self.cols)
 
     def draw_samples(self, lp: LightPrim, seed: int, sample_index: int) -> DomeSamples | None:
         """This frame's directions for dome ``lp`` (None without a map)."""
@@ -124,9 +123,7 @@ class DomeShadowMaps:
         illum = np.c_[samples.illuminance, samples.bias[:, 1]]
         set_uniform(prog, "u_dome_dir", dirs.astype(np.float32))
         set_uniform(prog, "u_dome_illum", illum.astype(np.float32))
-        set_uniform(
-            prog, "u_dome_tiles", (float(self.cols), float(self.rows), float(n), 0.0)
-        )
+        set_uniform(prog, "u_dome_tiles", (float(self.cols), float(self.rows), float(n), 0.0))
         return unit + 1
 
     def _allocate(self, size: int) -> None:
