@@ -586,6 +586,13 @@ DOME_MAX_RADIANCE = 1.0e6
 #: Dome maps kept in memory (file, format, rotation): an animated dome rotation
 #: resamples each frame and must not grow memory without bound.
 DOME_CACHE_ENTRIES = 8
+#: A dome's sun (``scene.dome.split_sun``, lit by the real-time methods as a shadowed
+#: distant light): texels within this radius (degrees) of the brightest one ...
+DOME_SUN_MAX_RADIUS_DEG = 6.0
+#: ... at least this fraction of its luminance ...
+DOME_SUN_THRESHOLD = 0.05
+#: ... carrying at least this share of the dome's power (a real sun: 50-90 %).
+DOME_SUN_MIN_SHARE = 0.2
 #: Directions the reference method samples from a textured dome per frame, each with
 #: its own directional shadow map (``--accumulate`` adds more per integrated frame).
 DOME_REFERENCE_SAMPLES = 32

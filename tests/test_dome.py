@@ -323,6 +323,23 @@ def sun_and_sky(h: int = 256, w: int = 512) -> np.ndarray:
     return rgb
 
 
+def test_split_sun_finds_the_disc():
+    """The disc of ``sun_and_sky``: its direction, and its illuminance above the sky
+    under it, E = (1500 - sky) 2 pi (1 - cos 3 deg) facing it (texel edges: 3 %)."""
+    img = sun_and_sky()
+    got = dome.split_sun(img)
+    assert got is not None
+    rest, d, e = got
+    el, az = math.radians(35.0), math.radians(35.0)
+    sun = np.array([math.cos(el) * math.sin(-az), math.sin(el), math.cos(el) * math.cos(-az)])
+    assert float(d @ sun) > math.cos(math.radians(0.5))
+    sky = 0.3 + 0.7 * math.sin(el)
+    expect = (1500.0 - sky) * 2 * math.pi * (1 - math.cos(math.radians(3.0)))
+    assert e[1] == pytest.approx(expect, rel=0.03)
+    assert float(rest.max()) < 2.0  # the disc is gone from the rest
+    assert dome.split_sun(half_sky()) is None  # no compact dominant source
+
+
 def test_sun_and_sky_matches_mitsuba(gl_ctx, tmp_path):
     pytest.importorskip("mitsuba")
     from mitsuba_ref import compare, render_mitsuba
@@ -342,6 +359,14 @@ def test_sun_and_sky_matches_mitsuba(gl_ctx, tmp_path):
     # dark in ours (unshadowed they are about 3 times as bright). Mitsuba's own noise
     # there, lit by the sky alone, is several per cent.
     assert shadow_error(ours, ref, hit, mask) <= 0.12
+    # STB: the dome's sun split off as its shadowed sun, the rest prefiltered (the sky
+    # unshadowed: the umbra is lit by all of the sky, Mitsuba's by what the box leaves).
+    stb = stb_hydra.render(stage, width=w, height=h, lighting="stb")
+    errs, mask, _ = compare(stb, ref, hit, light, normals)
+    med, p95 = float(np.median(errs)), float(np.percentile(errs, 95))
+    assert med <= 0.03, f"stb median {med:.4f}"
+    assert p95 <= 0.15, f"stb p95 {p95:.4f}"
+    assert shadow_error(stb, ref, hit, mask) <= 0.25
 
 
 def shadow_error(ours: np.ndarray, ref: np.ndarray, hit: np.ndarray, mask: np.ndarray) -> float:

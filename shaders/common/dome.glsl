@@ -6,7 +6,9 @@
 #define STB_DOME_GLSL
 #include "common/brdf.glsl"
 
-uniform sampler2D u_dome_map;  // rgb radiance factor, mipmapped, repeat in u
+uniform sampler2D u_dome_map;  // rgb radiance factor, mipmapped, repeat in u (lighting:
+                               // without its sun when the sun is lit as the shadowed sun)
+uniform sampler2D u_dome_sky;  // the whole map (what the camera sees)
 uniform vec3 u_dome_sh[9];     // SH9 of E(n) / pi (nits), the light's scale applied
 uniform vec4 u_dome_scale;     // rgb nits per map unit, w: the map's last mip level
 uniform vec4 u_dome_mult;      // x diffuse, y specular multiplier, z camera visible, w map width
@@ -20,6 +22,11 @@ vec2 dome_uv(vec3 d) {
 // Dome radiance (nits) arriving from unit direction d, prefiltered at mip `lod`.
 vec3 dome_radiance(vec3 d, float lod) {
     return textureLod(u_dome_map, dome_uv(d), lod).rgb * u_dome_scale.rgb;
+}
+
+// The dome as the camera sees it (nits), sun included.
+vec3 dome_sky(vec3 d) {
+    return textureLod(u_dome_sky, dome_uv(d), 0.0).rgb * u_dome_scale.rgb;
 }
 
 // E(n) / pi (nits): the radiance a white Lambert surface of normal n reflects.

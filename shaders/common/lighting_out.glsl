@@ -31,7 +31,7 @@ void write_background(ivec2 px) {
 #ifdef HAS_DOME_MAP
     if (u_dome_mult.z > 0.5) {
         vec3 d = -view_dir(world_pos_from_depth(vec2(px) + 0.5, 1.0));
-        bg += dome_radiance(d, 0.0);
+        bg += dome_sky(d);
         seen = true;
     }
 #endif

@@ -40,7 +40,9 @@ vec3 sun_and_ambient(Surface s) {
 #endif
     vec3 c = vec3(0.0);
 #ifdef HAS_SUN
-#ifdef HAS_LINKS
+#if defined(DOME_SUN_SAMPLED)
+    if (false) {  // the sun is the dome's: the reference samples it with the dome
+#elif defined(HAS_LINKS)
     if (u_sun_dir.w > 0.5 && distant_linked(0, group)) {
 #else
     if (u_sun_dir.w > 0.5) {

@@ -33,6 +33,9 @@ class DistantLights:
     #: The textured dome this frame lights with (``renderer/dome_env.py``; its mean is
     #: then not in ``ambient``), else None.
     dome: LightPrim | None = None
+    #: ``sun`` is the dome's own sun (``DomeMap.sun_direction``): the real-time methods
+    #: light the rest of the map from ``DomeMap.rest``; the reference skips ``sun``.
+    dome_sun: bool = False
 
 
 @dataclass

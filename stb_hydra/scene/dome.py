@@ -123,6 +123,46 @@ def sh9_irradiance(img: np.ndarray) -> np.ndarray:
     return coeff * _A_OVER_PI[:, None]
 
 
+# --- the sun of a sun-and-sky map ----------------------------------------------------------
+
+
+def split_sun(img: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Split a compact, dominant bright source (a sun) off a lat-long map, for the
+    real-time methods: they light it as a shadowed distant light and the rest from the
+    prefiltered map. The sun is the texels brighter than ``limits.DOME_SUN_THRESHOLD``
+    of the brightest within ``limits.DOME_SUN_MAX_RADIUS_DEG`` of it, when they carry
+    at least ``limits.DOME_SUN_MIN_SHARE`` of the map's power.
+
+    Returns (the map with those texels replaced by the mean of the ring around them,
+    unit direction to the sun (render frame), its illuminance facing it per map unit
+    (lux RGB)), or None when the map has no such source."""
+    h, w = img.shape[:2]
+    lum = img.astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+    sa = texel_solid_angles(h, w)[:, None]
+    total = float((lum * sa).sum())
+    k = int(np.argmax(lum))
+    peak = float(lum.flat[k])
+    if not (total > 0 and peak > 0 and math.isfinite(total)):
+        return None
+    dirs = latlong_directions(h, w)
+    centre = dirs.reshape(-1, 3)[k]
+    cosang = dirs @ centre
+    near = cosang >= math.cos(math.radians(limits.DOME_SUN_MAX_RADIUS_DEG))
+    region = near & (lum >= limits.DOME_SUN_THRESHOLD * peak)
+    ring = (cosang >= math.cos(math.radians(1.5 * limits.DOME_SUN_MAX_RADIUS_DEG))) & ~near
+    fill = img[ring].mean(axis=0) if ring.any() else np.zeros(3)
+    excess = (img.astype(np.float64) - fill) * region[..., None]
+    e = (excess * sa[..., None]).sum(axis=(0, 1))  # illuminance facing the sun, lux
+    share = float(e @ np.array([0.2126, 0.7152, 0.0722])) / total
+    if share < limits.DOME_SUN_MIN_SHARE:
+        return None
+    wts = (excess * sa[..., None]).sum(axis=-1)
+    d = (dirs * wts[..., None]).sum(axis=(0, 1))
+    d = d / max(float(np.linalg.norm(d)), 1e-12)
+    rest = np.where(region[..., None], fill[None, None, :], img).astype(np.float32)
+    return rest, d, np.maximum(e, 0.0)
+
+
 # --- sampling of the source formats ---------------------------------------------------------
 
 
@@ -305,6 +345,10 @@ def load_dome_map(path: str, fmt: str, rotation: np.ndarray, color_space: str = 
         source=path,
         format=concrete,
     )
+    sun = split_sun(img)
+    if sun is not None:
+        dm.rest, dm.sun_direction, dm.sun_illuminance = sun
+        dm.rest_sh9 = sh9_irradiance(dm.rest)
     if len(_cache) >= limits.DOME_CACHE_ENTRIES:
         _cache.pop(next(iter(_cache)))
     _cache[key] = dm

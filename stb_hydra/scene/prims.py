@@ -94,6 +94,13 @@ class DomeMap:
     #: Resolved file path and the concrete ``texture:format`` it was read as.
     source: str = ""
     format: str = "latlong"
+    #: A sun split off the map (``scene.dome.split_sun``; None: none): the map without
+    #: it, its SH9, the unit direction to it (render frame) and its illuminance facing
+    #: it per map unit (lux RGB). The real-time methods light it as a shadowed sun.
+    rest: np.ndarray | None = None
+    rest_sh9: np.ndarray | None = None
+    sun_direction: np.ndarray | None = None
+    sun_illuminance: np.ndarray | None = None
 
 
 @dataclass

@@ -223,7 +223,7 @@ class LightingMethod:
             sun.texture.use(unit)
             cast(moderngl.Uniform, prog["u_sun_shadow"]).value = unit
             unit += 1
-        if d is not None and "u_dome_map" in prog:
+        if d is not None and "u_dome_mult" in prog:  # common/dome.glsl
             unit = d.dome_env.bind(prog, unit)
         return unit
 

@@ -32,6 +32,8 @@ class ReferenceLighting(LightingMethod):
         samples = self._dome_samples(frame)
         if samples is not None:
             defines["DOME_SAMPLED"] = True
+            if frame.get(DistantLights).dome_sun:
+                defines["DOME_SUN_SAMPLED"] = True  # the sun is in the samples
         prog = program(frame, "lighting_direct.frag", self.lighting_defines(frame, defines))
         unit = self.bind_common(frame, prog)
         if samples is not None and self._dome is not None:

@@ -53,8 +53,35 @@ class DistantLightsTask(Pass):
             domes = domes[domes != t.rows[rec.dome.path]]
         amb = t.intensity[domes].sum(axis=0).astype(np.float64) if len(domes) else np.zeros(3)
         rec.ambient = amb + frame.settings.ambient
-        self.delegate.dome_env.update(rec.dome)
+        dm = rec.dome.dome_map if rec.dome is not None else None
+        if (
+            rec.dome is not None
+            and dm is not None
+            and dm.sun_direction is not None
+            and not rec.sun.enabled
+            and not t.has_light_links()
+        ):
+            rec.sun = self._dome_sun(rec.dome)
+            rec.rows = (int(t.rows[rec.dome.path]),)
+            rec.dome_sun = True
+        self.delegate.dome_env.update(rec.dome, rec.dome_sun)
         frame.put(rec)
+
+    @staticmethod
+    def _dome_sun(lp: LightPrim) -> SunSetup:
+        """The sun split off a dome's map as the shadowed sun (its light's multipliers
+        and shadow inputs)."""
+        dm = lp.dome_map
+        assert dm is not None and dm.sun_direction is not None
+        assert dm.sun_illuminance is not None
+        sun = SunSetup()
+        sun.direction_to_sun = np.asarray(dm.sun_direction, dtype=np.float64)
+        sun.illuminance = dm.sun_illuminance * np.asarray(lp.dome_scale, dtype=np.float64)
+        sun.enabled = True
+        sun.shadow = bool(lp.shadow_enable)
+        sun.diffuse, sun.specular = float(lp.diffuse), float(lp.specular)
+        sun.shadow_color = np.asarray(lp.shadow_color, dtype=np.float64)
+        return sun
 
     def _textured_dome(self, rows: np.ndarray, frame: FrameContext) -> LightPrim | None:
         """The brightest enabled dome with a texture map (the others with one light as
