@@ -377,3 +377,33 @@ def shadow_error(ours: np.ndarray, ref: np.ndarray, hit: np.ndarray, mask: np.nd
     shadow = floor & (yr < 0.3 * np.median(yr[floor]))
     assert shadow.sum() >= 20, f"only {shadow.sum()} shadowed floor pixels"
     return float(np.median(np.abs(yo[shadow] - yr[shadow]) / yr[shadow]))
+
+
+def test_bake_never_bakes_the_dome(gl_ctx, tmp_path):
+    """A dome marked static is not one of the lights the bake picks (it stays dynamic:
+    the runtime keeps lighting with it); the scene's static sphere light is."""
+    from stb_hydra.bake.baker import _static_lights
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    tex = write_exr(tmp_path / "halfsky.exr", half_sky())
+    text = SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex))
+    text = text.replace(
+        '    token inputs:texture:format = "latlong"\n',
+        '    token inputs:texture:format = "latlong"\n    uniform token stb:mobility = "static"\n',
+    )
+    text += (
+        'def SphereLight "Lamp"\n{\n    float inputs:intensity = 100\n'
+        '    uniform token stb:mobility = "static"\n'
+        "    double3 xformOp:translate = (0, 2, 0)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    scene = tmp_path / "scene.usda"
+    scene.write_text(text)
+    eng = Engine(scene, RenderSettings(width=64, height=36))
+    try:
+        t = eng.delegate.light_table
+        assert bool(t.static[t.rows["/Dome"]])  # authored static, still not baked
+        assert _static_lights(eng, eng.stage, lambda m: None) == ["/Lamp"]
+    finally:
+        eng.release()
