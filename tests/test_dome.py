@@ -25,6 +25,7 @@ from stb_hydra.renderer.delegate import RenderDelegate
 from stb_hydra.renderer.render_index import RenderIndex
 from stb_hydra.scene import dome
 from stb_hydra.scene.stage_scene_index import StageSceneIndex
+from stb_hydra.scenegen import dome_scene
 
 W, H = 128, 72
 ALBEDO = 0.5
@@ -239,88 +240,9 @@ def test_missing_texture_warns_once_and_falls_back(gl_ctx, tmp_path):
 
 # --- the sun-and-sky HDRI against Mitsuba 3 ---------------------------------------------
 
-#: Floor + boxes, Lambert albedo 0.5, seen at an angle (Mitsuba converts all of it).
-BOXES_USDA = """#usda 1.0
-(
-    metersPerUnit = 1
-    upAxis = "Y"
-)
-def Camera "Cam"
-{{
-    float focalLength = 18
-    float horizontalAperture = 36
-    float verticalAperture = 20.25
-    float2 clippingRange = (0.05, 100)
-    double3 xformOp:translate = (0, 1.5, 2.2)
-    float xformOp:rotateX = -32
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]
-}}
-def Mesh "Ground" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    int[] faceVertexCounts = [4]
-    int[] faceVertexIndices = [0, 1, 2, 3]
-    point3f[] points = [(-3, 0, -3), (-3, 0, 3), (3, 0, 3), (3, 0, -3)]
-    rel material:binding = </Looks/Grey>
-}}
-def Cube "Box" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    double size = 0.5
-    double3 xformOp:translate = (0.5, 0.25, 0.2)
-    uniform token[] xformOpOrder = ["xformOp:translate"]
-    rel material:binding = </Looks/Grey>
-}}
-def Cube "Tall" (
-    prepend apiSchemas = ["MaterialBindingAPI"]
-)
-{{
-    double size = 0.3
-    double3 xformOp:translate = (-0.4, 0.45, -0.3)
-    double3 xformOp:scale = (1, 3, 1)
-    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:scale"]
-    rel material:binding = </Looks/Grey>
-}}
-def Scope "Looks"
-{{
-    def Material "Grey"
-    {{
-        token outputs:surface.connect = </Looks/Grey/PBR.outputs:surface>
-        def Shader "PBR"
-        {{
-            uniform token info:id = "UsdPreviewSurface"
-            color3f inputs:diffuseColor = (0.5, 0.5, 0.5)
-            int inputs:useSpecularWorkflow = 1
-            color3f inputs:specularColor = (0, 0, 0)
-            float inputs:roughness = 1
-            token outputs:surface
-        }}
-    }}
-}}
-def DomeLight "Sky"
-{{
-    asset inputs:texture:file = @{tex}@
-    token inputs:texture:format = "latlong"
-    float inputs:intensity = {intensity}
-}}
-"""
-
-
-def sun_and_sky(h: int = 256, w: int = 512) -> np.ndarray:
-    """A dim sky (brighter towards the zenith, dark ground) and a 3-degree-radius sun
-    disc of radiance 1500 at 35 degrees elevation, from the front-left."""
-    d = dome.latlong_directions(h, w)
-    y = d[..., 1]
-    sky = np.where(y > 0, 0.3 + 0.7 * y, 0.05)
-    el, az = math.radians(35.0), math.radians(35.0)
-    sun = np.array([math.cos(el) * math.sin(-az), math.sin(el), math.cos(el) * math.cos(-az)])
-    disc = (d @ sun) > math.cos(math.radians(3.0))
-    img = np.where(disc, 1500.0, sky)
-    rgb = np.repeat(img[..., None], 3, axis=2).astype(np.float32)
-    rgb[..., 2] *= np.where(disc, 1.0, 1.15)  # a bluish sky (colour must survive too)
-    return rgb
+#: Floor + boxes and the sun-and-sky HDRI: ``stb_hydra.scenegen.dome_scene``.
+BOXES_USDA = dome_scene.BOXES_USDA
+sun_and_sky = dome_scene.sun_and_sky
 
 
 def test_split_sun_finds_the_disc():
@@ -407,3 +329,21 @@ def test_bake_never_bakes_the_dome(gl_ctx, tmp_path):
         assert _static_lights(eng, eng.stage, lambda m: None) == ["/Lamp"]
     finally:
         eng.release()
+
+
+def test_rect_light_texture_mean_sets_its_colour_and_power(tmp_path):
+    """A RectLight's texture (left half (1, 0.5, 0.25), right half black): the light
+    emits its mean, (0.5, 0.25, 0.125) x L x area."""
+    img = np.zeros((16, 32, 3), np.float32)
+    img[:, :16] = (1.0, 0.5, 0.25)
+    tex = write_exr(tmp_path / "rect.exr", img)
+    stage = usda_stage(
+        '#usda 1.0\n(\n    metersPerUnit = 1\n    upAxis = "Y"\n)\n'
+        'def RectLight "L"\n{\n    float inputs:intensity = 10\n    float inputs:width = 2\n'
+        f"    float inputs:height = 0.5\n    asset inputs:texture:file = @{tex}@\n}}\n"
+    )
+    ri = RenderIndex(StageSceneIndex(stage), RenderDelegate())
+    ri.sync_all()
+    lp = ri.delegate.lights["/L"].light
+    assert lp is not None
+    np.testing.assert_allclose(lp.intensity, np.array([0.5, 0.25, 0.125]) * 10 * 1.0, rtol=1e-5)

@@ -681,6 +681,8 @@ def _set_intensity(
     t = lp.type
     if t == prims.DISTANT_LIGHT:
         lp.intensity = radiance * _read_distant_angle(lp, a, ctx, normalize)
+    elif t == prims.RECT_LIGHT and a.has("inputs:texture:file"):
+        lp.intensity = lp.intensity * _rect_texture_mean(lp, a, ctx)
     elif t == prims.DOME_LIGHT:
         lp.dome_scale = radiance
         lp.intensity = radiance * _dome_texture_average(lp, a, ctx)
@@ -900,6 +902,27 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         _warn(lp, ctx, f"dome texture '{asset.path}' unreadable ({exc}); using white")
         return np.ones(3)
     return np.asarray(lp.dome_map.mean, dtype=np.float64)
+
+
+def _rect_texture_mean(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
+    """Mean RGB of a RectLight's ``inputs:texture:file`` (decoded like material
+    textures): the rect is shaded as a uniform emitter of that colour and power (1
+    without a usable texture; a missing or unreadable one warns)."""
+    from . import dome
+
+    asset = a.get("inputs:texture:file", None)
+    if asset is None or not getattr(asset, "path", ""):
+        return np.ones(3)
+    resolved = asset.resolvedPath
+    lp.texture_file = resolved or None
+    if not resolved:
+        _warn(lp, ctx, f"rect texture '{asset.path}' not found; emitting uniform white")
+        return np.ones(3)
+    try:
+        return dome.texture_mean(resolved)
+    except (dome.DomeTextureError, OSError, ValueError, RuntimeError) as exc:
+        _warn(lp, ctx, f"rect texture '{asset.path}' unreadable ({exc}); emitting white")
+        return np.ones(3)
 
 
 def area_half_extent(lp: LightPrim) -> float:
