@@ -887,7 +887,7 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
         _warn(lp, ctx, f"texture:format '{fmt}' unknown; reading it as latlong")
         fmt = "latlong"
     pole = "Y"
-    if lp.path and a.prim.GetTypeName() == "DomeLight_1":
+    if a.prim.GetTypeName() == "DomeLight_1":
         pole = str(a.get("poleAxis", "scene"))
         if pole not in dome.POLE_AXES:
             _warn(lp, ctx, f"poleAxis '{pole}' is not scene|Y|Z; using scene")
@@ -898,7 +898,7 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
     space = str(attr.GetColorSpace() or "") if attr is not None else ""
     try:
         lp.dome_map = dome.load_dome_map(resolved, fmt, rot, space)
-    except (dome.DomeTextureError, OSError, ValueError, RuntimeError) as exc:
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
         _warn(lp, ctx, f"dome texture '{asset.path}' unreadable ({exc}); using white")
         return np.ones(3)
     return np.asarray(lp.dome_map.mean, dtype=np.float64)
@@ -920,7 +920,7 @@ def _rect_texture_mean(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.nd
         return np.ones(3)
     try:
         return dome.texture_mean(resolved)
-    except (dome.DomeTextureError, OSError, ValueError, RuntimeError) as exc:
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
         _warn(lp, ctx, f"rect texture '{asset.path}' unreadable ({exc}); emitting white")
         return np.ones(3)
 
