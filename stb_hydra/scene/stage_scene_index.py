@@ -145,8 +145,8 @@ class LightDataSource(_DataSource):
         scale changed (shape-dependent intensity needs a full re-read)."""
         old = lp.world_scale
         set_transform(lp, self.world_matrix())
-        if lp.type == prims.MESH_LIGHT:
-            return False
+        if lp.type == prims.MESH_LIGHT or lp.dome_map is not None:
+            return False  # a textured dome's map is resampled in its new orientation
         return abs(lp.world_scale - old) <= 1e-9 * max(1.0, old)
 
 
