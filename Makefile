@@ -31,7 +31,7 @@ test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff format --check stb_hydra tests tools
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider --durations=25
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools

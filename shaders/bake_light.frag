@@ -20,6 +20,10 @@
 
 uniform sampler2D u_pos;     // rgba32f world position, w = coverage
 uniform sampler2D u_normal;  // rgba32f world normal
+// The light-buffer indices of the lights whose range sphere reaches this mesh's
+// bounding box (bake/gpu.py mesh_lights): the others light none of its texels.
+layout(std430, binding = SSBO_BAKE_LIGHTS) readonly buffer BakeLights { uint bake_lights[]; };
+uniform uint u_bake_count;
 #ifdef HAS_LINKS
 uniform uint u_link_group;   // the baked mesh's light-link group: unlinked lights skipped
 #endif
@@ -44,8 +48,8 @@ void main() {
     float wsum = 0.0;
     vec3 top_es = vec3(0.0), top_dir = vec3(0.0), sec_es = vec3(0.0), sec_dir = vec3(0.0);
     float top_w = 0.0, top_wt = 0.0, sec_w = 0.0, sec_wt = 0.0;
-    uint n = u_counts.x;
-    for (uint i = 0u; i < n; ++i) {
+    for (uint k = 0u; k < u_bake_count; ++k) {
+        uint i = bake_lights[k];
 #ifdef HAS_LINKS
         if (!light_linked(i, u_link_group)) continue;
 #endif

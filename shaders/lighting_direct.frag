@@ -8,6 +8,10 @@
 uniform uint u_point_lights;  // the first u_point_lights lights have no extent
 #endif
 
+#ifdef DOME_SAMPLED
+#include "common/dome_sampled.glsl"
+#endif
+
 #include "common/lighting_out.glsl"
 
 void main() {
@@ -23,6 +27,9 @@ void main() {
     vec3 c = sun_and_ambient(s, group);
 #else
     vec3 c = sun_and_ambient(s);
+#endif
+#if defined(DOME_SAMPLED) && !defined(HAS_LINKS)
+    c += dome_sampled(s);  // the textured dome, importance-sampled and shadowed
 #endif
 #ifdef LOCAL_LIGHTS
     // Point lights first (u_point_lights of them, renderer/light_buffer.points_first):

@@ -11,9 +11,12 @@ raw attributes and fall back to the same defaults, so behaviour is unchanged.
 from __future__ import annotations
 
 import os
+from importlib import resources
 from pathlib import Path
 
-SCHEMA_DIR = Path(__file__).resolve().parent / "scene" / "schema"
+#: The schema's plugInfo.json folder, package data read through importlib.resources (a
+#: file-system path: USD's plugin registry reads real files).
+SCHEMA_DIR = Path(str(resources.files("stb_hydra").joinpath("scene").joinpath("schema")))
 
 _registered = False
 

@@ -461,6 +461,13 @@ BAKE_TEXEL_DENSITY_DEFAULT = 16.0
 #: density is packed at a lower one (with a warning): GL_MAX_TEXTURE_SIZE is >= 8192
 #: on every GL 4.3 driver, 4096 keeps one lightmap <= 128 MiB at the bake's RGBA32F.
 BAKE_LIGHTMAP_MAX_SIZE = 4096
+#: The lightmap density a mesh gets (texels per metre measured on its UVs) may differ
+#: from the one asked by this fraction; past it xatlas packs again at a corrected
+#: ``texels_per_unit`` (its charts are stretched and rounded up to whole texels: small
+#: dense props came out ~15 % too dense), at most BAKE_DENSITY_PASSES packings in all
+#: (including those that lower the density to fit BAKE_LIGHTMAP_MAX_SIZE).
+BAKE_DENSITY_TOLERANCE = 0.03
+BAKE_DENSITY_PASSES = 8
 #: Triangles above which a mesh is not unwrapped (lit dynamically, warned): xatlas's
 #: chart growing is super-linear; 200 k triangles take ~1 min on one core.
 BAKE_MAX_TRIANGLES = 200_000
@@ -602,3 +609,29 @@ MAX_LIGHT_CHANGES = 16
 MAX_EXTRA_DISTANT = 3
 #: Faces of a cube shadow map (``u_face_vp`` / ``u_face_rot``): geometry, not a knob.
 CUBE_FACES = 6
+
+# --- Dome textures (issue 37, scene/dome.py, renderer/dome_env.py) ------------------
+
+#: Width (texels) of the render-frame lat-long map a dome texture is resampled into
+#: (height half of it). 1024 keeps a 0.35-degree texel, under the sun's 0.53-degree
+#: disc, at 2 MiB of RGBA16F (+ mips) and a 0.5 M-entry sampling table.
+DOME_MAX_WIDTH = 1024
+#: Largest dome radiance factor kept from a texture (values above are clamped): far
+#: above any real HDRI (the sun in a 16-bit EXR is ~1e5), under fp16's 65504 x the
+#: light's own intensity only where the light's intensity is below 1.
+DOME_MAX_RADIANCE = 1.0e6
+#: Dome maps kept in memory (file, format, rotation): an animated dome rotation
+#: resamples each frame and must not grow memory without bound.
+DOME_CACHE_ENTRIES = 8
+#: A dome's sun (``scene.dome.split_sun``, lit by the real-time methods as a shadowed
+#: distant light): texels within this radius (degrees) of the brightest one ...
+DOME_SUN_MAX_RADIUS_DEG = 6.0
+#: ... at least this fraction of its luminance ...
+DOME_SUN_THRESHOLD = 0.05
+#: ... carrying at least this share of the dome's power (a real sun: 50-90 %).
+DOME_SUN_MIN_SHARE = 0.2
+#: Directions the reference method samples from a textured dome per frame, each with
+#: its own directional shadow map (``--accumulate`` adds more per integrated frame).
+DOME_REFERENCE_SAMPLES = 32
+#: Side (texels) of each of those directional shadow maps.
+DOME_SHADOW_MAP_PX = 512

@@ -200,3 +200,73 @@ def Scope "Looks"
 }}
 {light}
 """
+
+
+def bake_yard_usda(
+    boxes: int = 24, lights: int = 64, half: float = 20.0, seed: int = 35, mpu: float = 1.0
+) -> str:
+    """Issue 35's bake scene: a ``2 half`` metre square ground quad (one Mesh, grey,
+    roughness 0.8), ``boxes`` ``UsdGeom.Cube`` prims (0.8-2.4 m, on a jittered grid)
+    and ``lights`` shadowed sphere lights (r = 0.1 m, 0.6-3 m up), every light
+    ``stb:mobility = "static"``; a camera at 14 m looking 32 degrees down over it.
+    ``mpu``: the layer's metersPerUnit (lengths are authored in units of it, so the
+    scene is the same in metres)."""
+    rng = np.random.default_rng(seed)
+    u = 1.0 / mpu  # units per metre
+    h = half * u
+    out = [
+        f'#usda 1.0\n(\n    metersPerUnit = {mpu:g}\n    upAxis = "Y"\n)\n',
+        'def Camera "Cam"\n{\n    float focalLength = 18\n    float horizontalAperture = 36\n'
+        "    float verticalAperture = 20.25\n"
+        f"    float2 clippingRange = ({0.1 * u:g}, {200 * u:g})\n"
+        f"    double3 xformOp:translate = (0, {14 * u:g}, {half * 1.25 * u:g})\n"
+        "    float xformOp:rotateX = -32\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n',
+        'def Mesh "Ground" (\n    prepend apiSchemas = ["MaterialBindingAPI"]\n)\n{\n'
+        "    int[] faceVertexCounts = [4]\n    int[] faceVertexIndices = [0, 1, 2, 3]\n"
+        f"    point3f[] points = [(-{h:g}, 0, -{h:g}), (-{h:g}, 0, {h:g}), ({h:g}, 0, {h:g}), "
+        f"({h:g}, 0, -{h:g})]\n    rel material:binding = </Looks/Grey>\n}}\n",
+        'def Scope "Looks"\n{\n    def Material "Grey"\n    {\n'
+        "        token outputs:surface.connect = </Looks/Grey/PBR.outputs:surface>\n"
+        '        def Shader "PBR"\n        {\n'
+        '            uniform token info:id = "UsdPreviewSurface"\n'
+        "            color3f inputs:diffuseColor = (0.5, 0.5, 0.5)\n"
+        "            float inputs:roughness = 0.8\n            token outputs:surface\n"
+        "        }\n    }\n}\n",
+        'def Xform "Boxes"\n{\n',
+    ]
+    cols = int(np.ceil(np.sqrt(boxes * 1.5)))
+    rows = int(np.ceil(boxes / cols))
+    for i in range(boxes):
+        gx = (i % cols + 0.5) / cols * 2 - 1
+        gz = (i // cols + 0.5) / rows * 2 - 1
+        s = float(rng.uniform(0.8, 2.4))
+        x = (gx * 0.8 + rng.uniform(-0.05, 0.05)) * half
+        z = (gz * 0.8 + rng.uniform(-0.05, 0.05)) * half
+        ry = float(rng.uniform(0, 90))
+        out.append(
+            f'    def Cube "Box{i:02d}" (\n        prepend apiSchemas = ["MaterialBindingAPI"]\n'
+            f"    )\n    {{\n        double size = {s * u:.6g}\n"
+            "        rel material:binding = </Looks/Grey>\n"
+            f"        double3 xformOp:translate = ({x * u:.6g}, {s / 2 * u:.6g}, {z * u:.6g})\n"
+            f"        float xformOp:rotateY = {ry:.4g}\n"
+            '        uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateY"]\n'
+            "    }\n"
+        )
+    out.append('}\ndef Xform "Lights"\n{\n')
+    for i in range(lights):
+        x, z = rng.uniform(-0.9, 0.9, 2) * half
+        y = float(rng.uniform(0.6, 3.0))
+        c = rng.uniform(0.6, 1.0, 3)
+        nits = float(rng.uniform(4e2, 1.6e3))
+        out.append(
+            f'    def SphereLight "L{i:02d}" (\n        prepend apiSchemas = ["StbLightAPI"]\n'
+            f"    )\n    {{\n        float inputs:intensity = {nits:.6g}\n"
+            f"        color3f inputs:color = ({c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f})\n"
+            f"        float inputs:radius = {0.1 * u:g}\n"
+            '        uniform token stb:mobility = "static"\n'
+            f"        double3 xformOp:translate = ({x * u:.6g}, {y * u:.6g}, {z * u:.6g})\n"
+            '        uniform token[] xformOpOrder = ["xformOp:translate"]\n    }\n'
+        )
+    out.append("}\n")
+    return "".join(out)

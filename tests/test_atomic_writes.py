@@ -62,7 +62,7 @@ class _Unprintable:
 
 
 def test_tradeoff_csv_failing_midway(tmp_path):
-    from stb_hydra.apps.tradeoff import write_csv
+    from stb_hydra.apps.tradeoff_report import write_csv
 
     p = _old(tmp_path, "tradeoff.csv")
     rows = [{"label": "x" * 1000, "v": i} for i in range(300)] + [{"label": _Unprintable()}]

@@ -380,6 +380,74 @@ def test_pick_selects_the_prim_under_the_pixel(scene, gl_ctx):
         s.release()
 
 
+#: Four pawns of one prototype at x = -3, -1, 1, 3 (instance 1 hidden), over the floor.
+INSTANCED_USDA = (
+    USDA_HEADER
+    + camera_usda((0, 6, 6), -45, clipping=(0.1, 100))
+    + ground_usda(10)
+    + """\
+def PointInstancer "Pawns"
+{
+    point3f[] positions = [(-3, 0.5, 0), (-1, 0.5, 0), (1, 0.5, 0), (3, 0.5, 0)]
+    int[] protoIndices = [0, 0, 0, 0]
+    int64[] invisibleIds = [1]
+    rel prototypes = [</Pawns/Protos/Pawn>]
+    def Scope "Protos"
+    {
+        def Xform "Pawn"
+        {
+            def Cube "Body"
+            {
+                double size = 1
+            }
+        }
+    }
+}
+def SphereLight "Key"
+{
+    float inputs:intensity = 3000
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (0, 3, 2)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+)
+
+
+@pytest.mark.gl
+def test_pick_selects_one_point_instance_not_its_prototype(tmp_path, gl_ctx):
+    """Each pawn picks as its own instance path (the scheme lights are synced under),
+    the hidden instance is not there to pick, and the selection frames that pawn."""
+    from pxr import Gf, Usd, UsdGeom
+
+    p = tmp_path / "pawns.usda"
+    p.write_text(INSTANCED_USDA)
+    s = _session(p, gl_ctx, "reference", max_samples=1)
+    try:
+        _converge(s)
+        frustum = UsdGeom.Camera(s.stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode()).frustum
+        to_ndc = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
+
+        def pixel(p):
+            ndc = to_ndc.Transform(Gf.Vec3d(*p))
+            return int((ndc[0] + 1) * 0.5 * W), int((1 - ndc[1]) * 0.5 * H)
+
+        for i, x in ((0, -3.0), (2, 1.0), (3, 3.0)):
+            path = f"/Pawns/__instance_{i}/Pawn/Body"
+            assert s.pick(*pixel((x, 0.6, 0.5))) == path
+            lo, hi = s.prim_bounds(path)
+            np.testing.assert_allclose(lo, [x - 0.5, 0.0, -0.5], atol=1e-5)
+            np.testing.assert_allclose(hi, [x + 0.5, 1.0, 0.5], atol=1e-5)
+            rows = dict(s.properties(path))
+            assert rows["instance id"] == str(i) and rows["instancer"] == "/Pawns"
+            assert rows["prototype"] == "/Pawns/Protos/Pawn/Body"
+        assert s.pick(*pixel((-1.0, 0.6, 0.5))) == "/Ground"  # invisibleIds = [1]
+        assert s.prim_bounds("/Pawns/__instance_1/Pawn/Body") is None
+        assert s.properties("/Pawns/__instance_9/Pawn/Body") == []
+    finally:
+        s.release()
+
+
 ANIMATED_USDA = TWO_LIGHTS_USDA.replace(
     "#usda 1.0\n(\n", "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 10\n"
 ).replace(

@@ -1,4 +1,5 @@
-"""`stb render` end to end: files, AOVs, frames, stats and every bad-input path."""
+"""`stb render`: files, AOVs, frames, stats and every bad-input path, through the CLI's
+``main`` in this process; one test runs it as a process for the exit codes."""
 
 from __future__ import annotations
 
@@ -53,7 +54,8 @@ def SphereLight "Broken"
 """
 
 
-def stb(*args: str) -> subprocess.CompletedProcess:
+def stb_process(*args: str) -> subprocess.CompletedProcess:
+    """``stb ARGS`` as its own process (exit codes as the shell sees them)."""
     return subprocess.run(
         [sys.executable, "-m", "stb_hydra.apps.cli", *args],
         capture_output=True,
@@ -63,13 +65,32 @@ def stb(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.fixture
+def stb(capfd):
+    """``stb ARGS`` in this process (``cli.main``; its GL context and compiled programs
+    shared with the other tests, issue 32), streams captured at the file descriptors
+    (USD's and OCIO's C++ messages too): a CompletedProcess-like result."""
+    from stb_hydra.apps import cli
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        capfd.readouterr()
+        try:
+            code = cli.main([str(a) for a in args])
+        except SystemExit as exc:  # argparse: usage errors
+            code = int(exc.code or 0)
+        out, err = capfd.readouterr()
+        return subprocess.CompletedProcess(list(args), code, out, err)
+
+    return run
+
+
+@pytest.fixture
 def scene(tmp_path: Path) -> Path:
     p = tmp_path / "scene.usda"
     p.write_text(SCENE)
     return p
 
 
-def test_exr_png_aovs_stats(scene: Path, tmp_path: Path):
+def test_exr_png_aovs_stats(stb, scene: Path, tmp_path: Path):
     out = tmp_path / "img.exr"
     stats = tmp_path / "stats.json"
     r = stb(
@@ -102,7 +123,7 @@ def test_exr_png_aovs_stats(scene: Path, tmp_path: Path):
     assert {"gbuffer", "lighting", "color_correction"} <= set(s["frames"][0]["timings_ms"])
 
 
-def test_png_gpu_display_matches_cpu_ocio(scene: Path, tmp_path: Path):
+def test_png_gpu_display_matches_cpu_ocio(stb, scene: Path, tmp_path: Path):
     assert stb("render", str(scene), str(tmp_path / "a.exr"), "--width", "64").returncode == 0
     assert stb("render", str(scene), str(tmp_path / "a.png"), "--width", "64").returncode == 0
     lin, _ = read_image(tmp_path / "a.exr")
@@ -112,7 +133,7 @@ def test_png_gpu_display_matches_cpu_ocio(scene: Path, tmp_path: Path):
     assert diff.max() <= 1  # GPU OCIO vs CPU OCIO within 1/255 (EXR is half-float)
 
 
-def test_frames_and_skip_existing(scene: Path, tmp_path: Path):
+def test_frames_and_skip_existing(stb, scene: Path, tmp_path: Path):
     pat = str(tmp_path / "f.####.exr")
     r = stb("render", str(scene), pat, "--width", "48", "--frames", "1:3")
     assert r.returncode == 0, r.stderr
@@ -162,7 +183,7 @@ def test_skip_existing_resumes_like_a_full_run(scene: Path, tmp_path: Path, temp
         (["--aov", "color,bogus"], "bogus"),
     ],
 )
-def test_bad_arguments_exit_2_without_files(scene, tmp_path, args, needle):
+def test_bad_arguments_exit_2_without_files(stb, scene, tmp_path, args, needle):
     out = tmp_path / "x.exr"
     r = (
         stb("render", str(scene), str(out), "--width", "32", *args)
@@ -175,7 +196,7 @@ def test_bad_arguments_exit_2_without_files(scene, tmp_path, args, needle):
     assert list(tmp_path.iterdir()) == [scene]
 
 
-def test_unwritable_and_unsupported_outputs(scene: Path, tmp_path: Path):
+def test_unwritable_and_unsupported_outputs(stb, scene: Path, tmp_path: Path):
     r = stb("render", str(scene), str(tmp_path / "missing_dir" / "x.exr"), "--width", "32")
     assert r.returncode == 2 and "missing_dir" in r.stderr
     r = stb("render", str(scene), str(tmp_path / "x.bmpx"), "--width", "32")
@@ -183,7 +204,7 @@ def test_unwritable_and_unsupported_outputs(scene: Path, tmp_path: Path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.usda"]
 
 
-def test_empty_and_unreadable_stages(tmp_path: Path):
+def test_empty_and_unreadable_stages(stb, tmp_path: Path):
     empty = tmp_path / "empty.usda"
     empty.write_text("#usda 1.0\n")
     r = stb("render", str(empty), str(tmp_path / "e.exr"), "--width", "32")
@@ -204,7 +225,7 @@ def test_python_api_is_deterministic(scene: Path):
     np.testing.assert_array_equal(a, b)
 
 
-def test_method_options_and_no_weight_cap(scene: Path, tmp_path: Path):
+def test_method_options_and_no_weight_cap(stb, scene: Path, tmp_path: Path):
     out = tmp_path / "s.exr"
     r = stb(
         "render",
@@ -238,7 +259,7 @@ def test_method_options_and_no_weight_cap(scene: Path, tmp_path: Path):
     assert r.returncode == 2 and "stb" in r.stderr
 
 
-def test_print_graph_describes_the_frame_and_renders_nothing(scene: Path, tmp_path: Path):
+def test_print_graph_describes_the_frame_and_renders_nothing(stb, scene: Path, tmp_path: Path):
     out = tmp_path / "g.png"
     r = stb(
         "render",
@@ -263,3 +284,13 @@ def test_print_graph_describes_the_frame_and_renders_nothing(scene: Path, tmp_pa
     assert order.index("gbuffer") < order.index("hiz") < order.index("lighting")
     assert "debug_smalltile" in order and "debug_bigtile" not in order  # culled: not asked for
     assert not out.exists()
+
+
+def test_exit_codes_as_a_process(scene: Path, tmp_path: Path):
+    """The shell's view: 0 with the file written, 2 and one line for bad input."""
+    r = stb_process("render", str(scene), str(tmp_path / "ok.exr"), "--width", "32")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "ok.exr").exists()
+    r = stb_process("render", str(scene), str(tmp_path / "x.exr"), "--width", "0")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.exr").exists()

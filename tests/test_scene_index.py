@@ -258,6 +258,35 @@ def test_point_instancer_positions_edit(tmp_path):
     assert ri.delegate.meshes["/World/Orbs/Proto/Ball"].mesh.num_instances == 4
 
 
+def test_invisible_ids_hide_only_their_instances(tmp_path):
+    """invisibleIds = [1] of four instances over two prototypes: instance 1 is gone,
+    the others keep their own position, prototype and path (the mask once shifted
+    every later instance onto its neighbour's index and prototype)."""
+    stage, _ = _instanced_stage(tmp_path)
+    orbs = stage.GetPrimAtPath("/World/Orbs")
+    second = stage.DefinePrim("/World/Orbs/Proto2", "Xform")
+    UsdGeom.Cube.Define(stage, second.GetPath().AppendChild("Box"))
+    inst = UsdGeom.PointInstancer(orbs)
+    inst.GetPrototypesRel().SetTargets(["/World/Orbs/Proto", "/World/Orbs/Proto2"])
+    inst.GetPositionsAttr().Set([(0, 1, 0), (0, 2, 0), (0, 3, 0), (0, 4, 0)])
+    inst.GetProtoIndicesAttr().Set([0, 0, 1, 0])
+    inst.GetInvisibleIdsAttr().Set([1])
+    _si, ri = _index(stage)
+    glows = sorted(p for p in ri.delegate.lights if p.startswith("/World/Orbs/"))
+    assert glows == [
+        "/World/Orbs/__instance_0/Proto/Glow",
+        "/World/Orbs/__instance_3/Proto/Glow",
+    ]
+    np.testing.assert_allclose(
+        ri.delegate.lights["/World/Orbs/__instance_3/Proto/Glow"].light.position, [1, 4, 0]
+    )
+    ball = ri.delegate.meshes["/World/Orbs/Proto/Ball"].mesh
+    np.testing.assert_allclose(ball.world_transforms()[:, 3, :3], [[0, 1, 0], [0, 4, 0]])
+    np.testing.assert_array_equal(ball.instance_ids, [0, 3])
+    box = ri.delegate.meshes["/World/Orbs/Proto2/Box"].mesh
+    np.testing.assert_allclose(box.world_transforms()[:, 3, :3], [[0, 3, 0]])
+
+
 def test_render_frame_from_z_up_centimetres():
     stage = usda_stage(
         """#usda 1.0

@@ -494,28 +494,44 @@ def test_generator_module_cli_help(module: str):
     assert "usage" in r.stdout.lower()
 
 
+def test_packaged_inputs_are_the_checkouts():
+    """The package's IES profiles and orb prefabs (``stb_hydra/data``, what an installed
+    wheel has) are byte for byte the checkout's usd_scenes copies."""
+    from stb_hydra.scenegen.common import package_data_dir
+
+    ies = package_data_dir("ies")
+    assert {p.name for p in ies.glob("*.ies")} == {p.name for p in IES_FILES}
+    for f in IES_FILES:
+        assert (ies / f.name).read_bytes() == f.read_bytes(), f.name
+    pre = package_data_dir("prefabs")
+    assert {p.name for p in pre.glob("*.usda")} == {"enemy_orb.usda", "wall_torch.usda"}
+    for p in pre.glob("*.usda"):
+        assert p.read_bytes() == (SCENES / "prefabs" / p.name).read_bytes(), p.name
+
+
 def test_generator_inputs_without_a_checkout(tmp_path: Path, monkeypatch, testdata: Path, capsys):
-    """Installed (no usd_scenes next to the package, no $STB_SHARED): generators that
-    need no input asset still work, the others say what to pass; explicit paths give
-    the same text as the checkout's defaults."""
+    """Installed (no checkout around the package, no $STB_SHARED): the IES profiles and
+    the orbs' prefabs come from the package data, so ``gen:lights`` and ``gen:orbs`` need
+    no argument; an explicit folder names the same files; the chess set says what to
+    pass."""
     from stb_hydra.scenegen import chess, common, lights, orbs
 
-    with_checkout = lights.lights_scene_usda(8, seed=1, types="ies,sphere")
+    packaged = lights.lights_scene_usda(8, seed=1, types="ies,sphere", anchor_dir=tmp_path)
     monkeypatch.setattr(common, "CHECKOUT", tmp_path / "site-packages")
     monkeypatch.delenv("STB_SHARED", raising=False)
     assert "SphereLight" in lights.lights_scene_usda(8, types="sphere,disk")
-    with pytest.raises(FileNotFoundError, match="ies_dir / --ies-dir"):
-        lights.lights_scene_usda(8, types="ies")
-    assert (
-        lights.lights_scene_usda(8, seed=1, types="ies,sphere", ies_dir=SCENES / "ies")
-        == with_checkout
+    text = lights.lights_scene_usda(8, seed=1, types="ies,sphere", anchor_dir=tmp_path)
+    assert text == packaged and ".ies@" in text
+    ies = common.package_data_dir("ies")
+    assert common.ies_dir() == ies and common.prefab_dir() == common.package_data_dir("prefabs")
+    # An explicit folder with the same files gives the same scene but for the paths.
+    explicit = lights.lights_scene_usda(8, seed=1, types="ies,sphere", ies_dir=SCENES / "ies")
+    assert explicit.replace(str((SCENES / "ies").resolve()), str(ies)) == lights.lights_scene_usda(
+        8, seed=1, types="ies,sphere"
     )
-    with pytest.raises(SystemExit):
-        lights.main([str(tmp_path / "l.usda"), "--lights", "8"])
-    assert "IES profiles not found" in capsys.readouterr().err
-    with pytest.raises(FileNotFoundError, match="prefab_dir / --prefab-dir"):
-        orbs.orbs_scene_usda(4, 24)
-    assert "Orb_0003" in orbs.orbs_scene_usda(4, 24, prefab_dir=SCENES / "prefabs")
+    with pytest.raises(FileNotFoundError, match="IES profiles folder not found"):
+        lights.lights_scene_usda(8, types="ies", ies_dir=tmp_path / "nosuch")
+    assert "Orb_0003" in orbs.orbs_scene_usda(4, 24)
     with pytest.raises(FileNotFoundError, match=r"--chess.*\$STB_SHARED"):
         chess.chess_scene_usda(4)
     chess_usda = testdata / "scenes" / "OpenChessSet" / "chess_set.usda"

@@ -11,11 +11,11 @@ import pytest
 from test_baselines import small_lights_scene
 
 from stb_hydra.apps import cli
-from stb_hydra.apps.tradeoff import (
+from stb_hydra.apps.tradeoff_measure import grid_units
+from stb_hydra.apps.tradeoff_report import (
     best_within,
     cheapest_reaching,
     default_budgets,
-    grid_units,
     pareto_front,
 )
 

@@ -151,24 +151,51 @@ def _inside(path: str | Path, root: Path) -> bool:
     return Path(path).resolve().is_relative_to(root.resolve())
 
 
-@pytest.mark.slow
-@pytest.mark.gl
-def test_wheel_installs_and_renders_outside_the_checkout(tmp_path, gl_ctx):
-    wheel = _build_wheel(tmp_path)
-    names = set(zipfile.ZipFile(wheel).namelist())
-    for f in (
-        "shaders/__init__.py",
-        "shaders/stb_bigtile.frag",
-        "shaders/common/lights.glsl",
-        "data/quad_patterns.json",
-        "scene/schema/plugInfo.json",
-    ):
-        assert f"stb_hydra/{f}" in names, f
-
-    venv = _venv_with_wheel(tmp_path, wheel)
-    run_dir = tmp_path / "run"
+@pytest.fixture(scope="module")
+def wheel_env(tmp_path_factory):
+    """(wheel, venv, run_dir, env): the wheel of this checkout installed into a fresh
+    venv, a working folder outside the checkout and an environment without
+    PYTHONPATH/PYTHONHOME (shared by this module's tests: one build, one install)."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    wheel = _build_wheel(tmp)
+    venv = _venv_with_wheel(tmp, wheel)
+    run_dir = tmp / "run"
     run_dir.mkdir()
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    # Nothing of the checkout or the shared test data may be found by default.
+    env.pop("STB_SHARED", None)
+    env["STB_BAKE_CACHE"] = str(tmp / "bake_cache")
+    return wheel, venv, run_dir, env
+
+
+#: Package data a verb reads at run time: shaders, the schema, the validator plugin,
+#: the LTC table, the STB patterns, the IES profiles and prefabs of the generators.
+PACKAGE_DATA = (
+    "shaders/__init__.py",
+    "shaders/stb_bigtile.frag",
+    "shaders/bake_light.frag",
+    "shaders/common/lights.glsl",
+    "data/quad_patterns.json",
+    "data/ltc_ggx.npy",
+    "data/ies/streetlamp_typeII.ies",
+    "data/ies/downlight_narrow.ies",
+    "data/ies/wallwash.ies",
+    "data/ies/uplight.ies",
+    "data/prefabs/enemy_orb.usda",
+    "data/prefabs/wall_torch.usda",
+    "scene/schema/plugInfo.json",
+    "scene/schema/generatedSchema.usda",
+    "validate/plugInfo.json",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_wheel_installs_and_renders_outside_the_checkout(wheel_env, gl_ctx):
+    wheel, venv, run_dir, env = wheel_env
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for f in PACKAGE_DATA:
+        assert f"stb_hydra/{f}" in names, f
 
     r = subprocess.run(
         [str(venv / "bin" / "python"), "-c", _CHILD, str(SCENE)],
@@ -218,3 +245,165 @@ def test_wheel_installs_and_renders_outside_the_checkout(tmp_path, gl_ctx):
     png, _ = read_image(out)
     assert png.shape[:2] == (36, 64)
     assert np.all(np.isfinite(png)) and float(png.max()) > 0.0, "black PNG"
+
+
+#: A small static scene for the bake and preview examples: the Lambert floor, a
+#: ``UsdGeom.Cube`` and one static sphere light.
+_SMALL_LIGHT = """def Cube "Box"
+{
+    double size = 1
+    double3 xformOp:translate = (0, 0.5, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "L" (
+    prepend apiSchemas = ["StbLightAPI"]
+)
+{
+    float inputs:intensity = 3000
+    float inputs:radius = 0.1
+    uniform token stb:mobility = "static"
+    double3 xformOp:translate = (1, 2, 0.5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+"""
+
+
+def _stb(venv: Path, run_dir: Path, env: dict, *args: str, timeout: int = 300):
+    r = subprocess.run(
+        [str(venv / "bin" / "stb"), *args],
+        cwd=run_dir,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+    assert r.returncode == 0, f"stb {' '.join(args)}: {r.stdout[-2000:]}{r.stderr[-2000:]}"
+    return r
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_readme_examples_run_from_the_wheel(wheel_env, gl_ctx):
+    """Every verb of the README, as its examples run it but at small sizes, from the
+    wheel's console script outside the checkout: inspect, validate, bench with a
+    generator (its IES profiles are package data: issue 35), tradeoff, bake (and a
+    render of the baked layer), and preview --snapshot under Xvfb. ``render`` is the
+    test above."""
+    from stagegen import LAMBERT_FLOOR_USDA
+
+    _wheel, venv, run, env = wheel_env
+    scenes = REPO / "usd_scenes"
+
+    r = _stb(venv, run, env, "inspect", str(SCENE), "--json")
+    rep = json.loads(r.stdout)
+    assert rep["lights"], "inspect found no lights"
+
+    v = run / "validate.json"
+    _stb(
+        venv,
+        run,
+        env,
+        "validate",
+        str(scenes / "prefabs" / "street_lamp.usda"),
+        "--library-root",
+        str(scenes),
+        "--json",
+        str(v),
+    )
+    assert json.loads(v.read_text())
+
+    b = run / "bench.json"
+    _stb(
+        venv,
+        run,
+        env,
+        "bench",
+        "gen:lights:20",
+        "--methods",
+        "stb,reference",
+        "--size",
+        "64x36",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+        str(b),
+    )
+    recs = json.loads(b.read_text())
+    assert {r["method"] for r in recs} == {"stb", "reference"}
+
+    tr = run / "tradeoff"
+    _stb(
+        venv,
+        run,
+        env,
+        "tradeoff",
+        "lights:20",
+        "--quick",
+        "--methods",
+        "stb",
+        "--width",
+        "64",
+        "--height",
+        "36",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "--temporal-frames",
+        "2",
+        "--no-hdr-flip",
+        "--mitsuba-spp",
+        "0",
+        "--out",
+        str(tr),
+    )
+    assert (tr / "tradeoff.csv").is_file()
+
+    small = run / "small.usda"
+    small.write_text(LAMBERT_FLOOR_USDA.format(rho=0.5, light=_SMALL_LIGHT))
+    baked = run / "small_baked.usda"
+    r = _stb(venv, run, env, "bake", str(small), "-o", str(baked), "--texel-density", "2")
+    said = r.stdout + r.stderr  # the per-mesh lines: size and achieved density
+    assert "/Box: " in said and "/Ground: " in said and "texels/m (asked 2)" in said, said
+    assert (run / "small_baked_lightmaps" / "Box.exr").is_file()
+    png = run / "baked.png"
+    _stb(venv, run, env, "render", str(baked), str(png), "--width", "64", "--height", "36")
+    from stb_hydra.io.images import read_image
+
+    img, _ = read_image(png)
+    assert np.all(np.isfinite(img)) and float(img.max()) > 0.0
+
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("preview --snapshot needs xvfb-run (tools/ensure_system_deps.sh)")
+    pytest.importorskip("glfw")
+    pytest.importorskip("imgui_bundle")
+    snap = run / "snap.png"
+    r = subprocess.run(
+        [
+            "xvfb-run",
+            "-a",
+            "-s",
+            "-screen 0 640x480x24",
+            str(venv / "bin" / "stb"),
+            "preview",
+            str(small),
+            "--snapshot",
+            str(snap),
+            "--after-frames",
+            "2",
+            "--width",
+            "160",
+            "--height",
+            "90",
+        ],
+        cwd=run,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    shot, _ = read_image(snap)
+    assert shot.shape[:2] == (90, 160) and float(shot.max()) > 0.0

@@ -305,11 +305,11 @@ MUTANTS: tuple[Mutant, ...] = (
     ),
     Mutant(
         "tradeoff_csv_tmp_left",
-        "stb_hydra/apps/tradeoff.py",
-        "        tmp.unlink(missing_ok=True)\n        raise",
-        "        raise",
+        "stb_hydra/io/files.py",
+        "        tmp.unlink(missing_ok=True)\n        if isinstance(exc, OSError):",
+        "        if isinstance(exc, OSError):",
         ("tests/test_atomic_writes.py",),
-        "stb tradeoff: the CSV's temporary file left behind on failure",
+        "text writes (stb tradeoff's CSV, reports): the temporary file left behind on failure",
     ),
     # --- faults and fuzzing (issue 21, items 6-7): the bugs they found, put back -----
     Mutant(

@@ -7,6 +7,9 @@
 #ifndef STB_LIGHTING_OUT_GLSL
 #define STB_LIGHTING_OUT_GLSL
 #include "common/gbuffer.glsl"
+#ifdef HAS_DOME_MAP
+#include "common/dome.glsl"
+#endif
 
 layout(location = 0) out vec4 o_color;
 #ifdef TAA_DEMOD_OUT
@@ -20,10 +23,19 @@ void write_demod(ivec2 px, vec4 color, vec3 alb) {
 }
 #endif
 
-// A background pixel: the dome seen directly (alpha 1), else transparent black.
+// A background pixel: the dome seen directly (alpha 1), else transparent black. A
+// textured dome the camera sees (HAS_DOME_MAP, u_dome_mult.z) shows its map.
 void write_background(ivec2 px) {
-    o_color = u_ambient.r + u_ambient.g + u_ambient.b > 0.0
-        ? vec4(sanitize_radiance(u_ambient.rgb * u_clip.w), 1.0) : vec4(0.0);
+    vec3 bg = u_ambient.rgb;
+    bool seen = bg.r + bg.g + bg.b > 0.0;
+#ifdef HAS_DOME_MAP
+    if (u_dome_mult.z > 0.5) {
+        vec3 d = -view_dir(world_pos_from_depth(vec2(px) + 0.5, 1.0));
+        bg += dome_sky(d);
+        seen = true;
+    }
+#endif
+    o_color = seen ? vec4(sanitize_radiance(bg * u_clip.w), 1.0) : vec4(0.0);
 #ifdef TAA_DEMOD_OUT
     write_demod(px, o_color, demod_albedo(texelFetch(g_base_rough, px, 0),
                                           texelFetch(g_f0_metal, px, 0)));

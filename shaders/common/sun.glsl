@@ -4,6 +4,9 @@
 #include "common/frame.glsl"
 #include "common/brdf.glsl"
 #include "common/links.glsl"
+#ifdef HAS_DOME_MAP
+#include "common/dome.glsl"
+#endif
 
 #ifdef HAS_SUN_SHADOW
 uniform sampler2DShadow u_sun_shadow;
@@ -37,7 +40,9 @@ vec3 sun_and_ambient(Surface s) {
 #endif
     vec3 c = vec3(0.0);
 #ifdef HAS_SUN
-#ifdef HAS_LINKS
+#if defined(DOME_SUN_SAMPLED)
+    if (false) {  // the sun is the dome's: the reference samples it with the dome
+#elif defined(HAS_LINKS)
     if (u_sun_dir.w > 0.5 && distant_linked(0, group)) {
 #else
     if (u_sun_dir.w > 0.5) {
@@ -64,6 +69,11 @@ vec3 sun_and_ambient(Surface s) {
 #else
     c += u_ambient.rgb * env_albedo(s, NoV) * s.occlusion;
 #endif
+#endif
+#if defined(HAS_DOME_MAP) && !defined(HAS_LINKS) && !defined(DOME_SAMPLED)
+    // The textured dome (common/dome.glsl); under light linking each group's ambient
+    // holds the domes' means (link_ambient); the reference samples it (DOME_SAMPLED).
+    c += dome_light(s, s.occlusion);
 #endif
     return c;
 }

@@ -27,6 +27,13 @@ def add_parser(sub) -> None:
         help=f"lightmap texels per metre (default {limits.BAKE_TEXEL_DENSITY_DEFAULT:g})",
     )
     p.add_argument("--jobs", type=int, default=1, help="threads for the xatlas unwrap")
+    p.add_argument(
+        "--shadow-height",
+        type=int,
+        default=limits.BAKE_SHADOW_VIEW_HEIGHT,
+        help="view height (px) the shadow maps are sized for, as a render of that height "
+        f"(default {limits.BAKE_SHADOW_VIEW_HEIGHT})",
+    )
     p.add_argument("--camera", default=None, help="camera whose exposure sets light ranges")
     p.add_argument("--cache-dir", default=None, help="unwrap cache (default ~/.cache/stb_hydra)")
     p.add_argument("--quiet", action="store_true", help="no progress bar or summary")
@@ -46,6 +53,8 @@ def main(args: argparse.Namespace) -> int:
         return fail(f"'{out}': no such directory '{out.parent}'")
     if not (args.texel_density > 0):
         return fail(f"--texel-density must be > 0, got {args.texel_density:g}")
+    if args.shadow_height < 1:
+        return fail(f"--shadow-height must be >= 1, got {args.shadow_height}")
     if args.jobs < 1:
         return fail(f"--jobs must be >= 1, got {args.jobs}")
     rep_cli = getattr(args, "reporter", None)
@@ -60,10 +69,15 @@ def main(args: argparse.Namespace) -> int:
             camera=args.camera,
             warn=warn,
             progress=not args.quiet,
+            shadow_view_height=args.shadow_height,
         )
     except (RenderError, FileWriteError, ImageWriteError, ValueError) as exc:
         return fail(str(exc))
     if not args.quiet and rep_cli is not None:
+        for path, (w, h, dens) in rep.densities.items():
+            rep_cli.say(
+                f"  {path}: {w} x {h} texels, {dens:.3f} texels/m (asked {args.texel_density:g})"
+            )
         rep_cli.say(
             f"baked {len(rep.lights)} light(s) into {len(rep.meshes)} mesh lightmap(s), "
             f"{rep.texels / 1e6:.2f} Mtexel ({rep.gpu_bytes / 2**20:.1f} MiB on the GPU), "

@@ -32,6 +32,7 @@ from ..io.files import write_text_atomic
 from ..io.images import write_image
 from ..renderer.engine import Engine
 from ..renderer.frame import RenderSettings
+from ..scene.geometry import IMPLICIT_TYPES
 from .gpu import BakedMap, run_bake_frame
 from .unwrap import MeshLayout, UnwrapError, default_cache_dir, mesh_world_data, unwrap_mesh
 
@@ -83,6 +84,12 @@ class BakeReport:
     seconds: dict[str, float] = field(default_factory=dict)
     cached: int = 0
     warnings: list[str] = field(default_factory=list)
+    #: Per baked mesh: (width, height) of its lightmap in texels and the texel density
+    #: it achieves (texels per metre, measured on its UVs: ``unwrap.achieved_density``).
+    densities: dict[str, tuple[int, int, float]] = field(default_factory=dict)
+    #: Sum over baked meshes of lightmap texels x the static lights whose range reaches
+    #: the mesh (what the GPU bake's time follows; ``gpu.mesh_lights``).
+    texel_lights: int = 0
 
 
 def light_fingerprint(prim: Usd.Prim, time_code: Usd.TimeCode | None = None) -> str:
@@ -133,9 +140,14 @@ def bake_stage(
     camera: str | None = None,
     warn: Callable[[str], None] | None = None,
     progress: bool = True,
+    shadow_view_height: int = limits.BAKE_SHADOW_VIEW_HEIGHT,
 ) -> BakeReport:
     """Bake ``scene``'s static lights into lightmaps; write ``out`` (.usda) and its
-    ``<stem>_lightmaps/`` folder. ``jobs``: threads for the CPU unwrap (xatlas)."""
+    ``<stem>_lightmaps/`` folder. ``jobs``: threads for the CPU unwrap (xatlas).
+    ``shadow_view_height``: the 16:9 view height (px) the shadow maps are sized for
+    (the resolution policy of a render at that height; default 1080p). A bake compared
+    with a reference render of another height differs by that render's shadow-map
+    resolution as well as by the lightmaps."""
     t0 = time.perf_counter()
     scene_p, out_p = Path(scene), Path(out)
     rep = BakeReport(out_p)
@@ -147,10 +159,12 @@ def bake_stage(
 
     if not (texel_density > 0 and np.isfinite(texel_density)):
         raise ValueError(f"--texel-density must be a positive number, got {texel_density}")
-    aspect_w = 16 * limits.BAKE_SHADOW_VIEW_HEIGHT // 9
+    if not (isinstance(shadow_view_height, int) and shadow_view_height > 0):
+        raise ValueError(f"shadow view height must be a positive integer, got {shadow_view_height}")
+    aspect_w = 16 * shadow_view_height // 9
     settings = RenderSettings(
         width=aspect_w,
-        height=limits.BAKE_SHADOW_VIEW_HEIGHT,
+        height=shadow_view_height,
         camera=camera,
         lighting="reference",
         shadow_budget=None,
@@ -159,6 +173,11 @@ def bake_stage(
     try:
         stage = eng.stage
         tc = _start_time(stage)
+        if not stage.HasAuthoredMetadata("metersPerUnit"):
+            _warn(
+                f"{scene_p}: no metersPerUnit authored; USD's fallback 0.01 (centimetres) "
+                "applies, and lightmap densities are per metre"
+            )
         light_paths = _static_lights(eng, stage, _warn)
         rep.lights = light_paths
         sources = _static_meshes(eng, stage, _warn)
@@ -176,6 +195,7 @@ def bake_stage(
             if bar is not None:
                 bar.close()
             maps = bake.maps
+            rep.texel_lights = bake.texel_lights
         rep.seconds["gpu"] = time.perf_counter() - t2
         t3 = time.perf_counter()
         _write_outputs(stage, scene_p, out_p, layouts, maps, light_paths, tc, rep)
@@ -225,7 +245,9 @@ def _restrict_static(eng: Engine, paths: list[str]) -> None:
 
 
 def _static_meshes(eng: Engine, stage: Usd.Stage, warn: Callable[[str], None]) -> list:
-    """(MeshSource) of every visible, static, non-instanced Mesh prim."""
+    """(MeshSource) of every visible, static, non-instanced Mesh prim and implicit shape
+    (``Cube``, ``Sphere``, ``Cylinder``, ``Cone``, ``Capsule``, ``Plane``: tessellated
+    as the renderer draws them)."""
     tc = _start_time(stage)
     out = []
     for path, rp in sorted(eng.delegate.meshes.items()):
@@ -233,7 +255,7 @@ def _static_meshes(eng: Engine, stage: Usd.Stage, warn: Callable[[str], None]) -
         if m is None or not m.visible or m.dynamic or m.instance_transforms is not None:
             continue
         prim = stage.GetPrimAtPath(path)
-        if not prim or not prim.IsA(UsdGeom.Mesh):
+        if not prim or not (prim.IsA(UsdGeom.Mesh) or prim.GetTypeName() in IMPLICIT_TYPES):
             continue
         if prim.IsInstanceProxy() or prim.IsInPrototype():
             continue  # instanced: one prototype, many places; lit dynamically
@@ -274,10 +296,11 @@ def _unwrap_all(
             rep.skipped[path] = res
             warn(f"mesh <{path}>: not baked ({res}); lit dynamically")
             continue
-        if res.density < density * 0.999:
+        if res.capped:
             warn(
-                f"mesh <{path}>: lightmap density lowered to {res.density:.3g} texels/m "
-                f"to fit {limits.BAKE_LIGHTMAP_MAX_SIZE} texels"
+                f"mesh <{path}>: lightmap density lowered to {res.achieved:.3g} texels/m "
+                f"(asked {density:g}) to fit {limits.BAKE_LIGHTMAP_MAX_SIZE} texels a side "
+                "(limits.BAKE_LIGHTMAP_MAX_SIZE)"
             )
         rep.cached += int(res.cached)
         layouts.append(res)
@@ -330,11 +353,12 @@ def _write_outputs(
             np.ascontiguousarray(pix),
             channel_names=CHANNELS,
             pixel_type="half",
-            metadata={"stb:lightmap:prim": lay.path, "stb:lightmap:texelDensity": lay.density},
+            metadata={"stb:lightmap:prim": lay.path, "stb:lightmap:texelDensity": lay.achieved},
         )
         _author_mesh(layer, lay, _rel(exr, out.parent))
         w, h = lay.size
         rep.texels += w * h
+        rep.densities[lay.path] = (w, h, lay.achieved)
         baked_meshes.append(lay.path)
     rep.meshes = baked_meshes
     rep.gpu_bytes = rep.texels * 7 * 6
@@ -351,7 +375,7 @@ def _write_outputs(
     layer.customLayerData = {
         LAYER_KEY: {
             "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-            "texelDensity": float(np.median([lay.density for lay in layouts])) if layouts else 0.0,
+            "texelDensity": float(np.median([lay.achieved for lay in layouts])) if layouts else 0.0,
             "lights": fps,
             "meshes": Vt.StringArray(baked_meshes),
         }
@@ -368,7 +392,7 @@ def _author_mesh(layer: Sdf.Layer, lay: MeshLayout, exr_rel: str) -> None:
     f = Sdf.AttributeSpec(spec, FILE_ATTR, Sdf.ValueTypeNames.Asset, Sdf.VariabilityUniform)
     f.default = Sdf.AssetPath(exr_rel)
     d = Sdf.AttributeSpec(spec, DENSITY_ATTR, Sdf.ValueTypeNames.Float, Sdf.VariabilityUniform)
-    d.default = float(lay.density)
+    d.default = float(lay.achieved)
     if lay.tri_points is not None:
         # Re-authored as its triangles (a polygon spans two charts; see unwrap.py).
         c = Sdf.AttributeSpec(spec, "faceVertexCounts", Sdf.ValueTypeNames.IntArray)

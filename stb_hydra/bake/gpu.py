@@ -32,9 +32,10 @@ from ..renderer.frame import FrameContext
 from ..renderer.fullscreen import draw_fullscreen
 from ..renderer.gl import park, set_uniform, shader_library
 from ..renderer.graph import Imported
-from ..renderer.lighting.base import READS
+from ..renderer.lighting.base import GBUFFER_INPUTS, READS
 from ..renderer.lighting.reference import ReferenceLighting
 from ..renderer.records import InViewLights, LightBuffer
+from ..renderer.shader_constants import SSBO_BAKE_LIGHTS
 from ..renderer.tasks.base import Pass
 from ..renderer.tasks.light_cull import LightCullTask
 from ..scene.prims import CONE_CUTOFF_TEST_RAD
@@ -92,7 +93,8 @@ class LightmapBakePass(Pass):
     """Bakes every layout in ``layouts`` (results in ``self.maps`` by prim path)."""
 
     name = "lightmap_bake"
-    reads = (*READS, Imported("meshes"))
+    # The lighting inputs less the G-buffer: nothing of the view is drawn for a bake.
+    reads = (*(r for r in READS if r not in GBUFFER_INPUTS), Imported("meshes"))
     writes = ()
     side_effect = True
 
@@ -107,6 +109,8 @@ class LightmapBakePass(Pass):
         self.progress = progress
         self.maps: dict[str, BakedMap] = {}
         self.light_count = 0
+        #: Sum over meshes of lightmap texels x the lights whose range reaches it.
+        self.texel_lights = 0
 
     def execute(self, frame: FrameContext) -> None:
         if self.maps:
@@ -115,11 +119,17 @@ class LightmapBakePass(Pass):
         method = ReferenceLighting(self.delegate)
         defines = method.scene_defines(frame)
         self.light_count = frame.get(LightBuffer).count
+        rows = frame.get(InViewLights).rows
+        t = self.delegate.light_table
+        pos = np.asarray(t.position[rows], dtype=np.float64).reshape(-1, 3)
+        rng = np.asarray(t.range[rows], dtype=np.float64)
         lib = shader_library(ctx)
         raster = lib.program("bake_raster.vert", "bake_raster.frag")
         light = lib.program("fullscreen.vert", "bake_light.frag", defines)
         for lay in self.layouts:
-            self.maps[lay.path] = self._bake_one(ctx, frame, method, raster, light, lay)
+            idx = mesh_lights(pos, rng, lay.P)
+            self.texel_lights += lay.size[0] * lay.size[1] * len(idx)
+            self.maps[lay.path] = self._bake_one(ctx, frame, method, raster, light, lay, idx)
             if self.progress is not None:
                 self.progress(lay)
 
@@ -131,6 +141,7 @@ class LightmapBakePass(Pass):
         raster: moderngl.Program,
         light: moderngl.Program,
         lay: MeshLayout,
+        light_idx: np.ndarray,
     ) -> BakedMap:
         ss = limits.BAKE_SUPERSAMPLE
         w, h = lay.size
@@ -155,6 +166,8 @@ class LightmapBakePass(Pass):
             [np.arange(3 * m), (np.arange(3 * m) // 3) * 3 + (np.arange(3 * m) + 1) % 3]
         )
         vbo = ctx.buffer(np.ascontiguousarray(verts).tobytes())
+        # One element at least: a zero-size SSBO is not bindable (u_bake_count says 0).
+        lbuf = ctx.buffer(np.r_[light_idx, 0].astype(np.uint32).tobytes())
         ibo = ctx.buffer(np.ascontiguousarray(edges.T.reshape(-1), dtype=np.uint32).tobytes())
         vao_t = ctx.vertex_array(raster, [(vbo, "2f 3f 3f", "in_uv", "in_pos", "in_normal")])
         vao_e = ctx.vertex_array(
@@ -171,6 +184,8 @@ class LightmapBakePass(Pass):
             rp = self.delegate.meshes.get(lay.path)
             group = rp.mesh.link_group if rp is not None and rp.mesh is not None else 0
             set_uniform(light, "u_link_group", int(group))  # light linking (bake_light.frag)
+            lbuf.bind_to_storage_buffer(SSBO_BAKE_LIGHTS)
+            set_uniform(light, "u_bake_count", len(light_idx))
             unit = 8
             for name, tex in (("u_pos", pos), ("u_normal", nrm)):
                 tex.use(unit)
@@ -181,9 +196,24 @@ class LightmapBakePass(Pass):
             cov = _read(pos, size)[..., 3]
         finally:
             park(ctx)  # never leave a framebuffer bound that is about to be deleted
-            for o in (vao_t, vao_e, vbo, ibo, fbo_g, fbo_l, pos, nrm, *outs):
+            for o in (vao_t, vao_e, vbo, ibo, lbuf, fbo_g, fbo_l, pos, nrm, *outs):
                 o.release()
         return _resolve(arrs, cov, ss)
+
+
+def mesh_lights(pos: np.ndarray, rng: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Light-buffer indices (uint32, increasing) of the lights whose range sphere --
+    centre ``pos`` (n, 3) and radius ``rng`` (n,), metres, render frame -- meets the
+    axis-aligned bounding box of the mesh's triangle corners ``P`` (m, 3, 3). Past its
+    range a light adds exactly 0 (the range window of common/lights.glsl), so the bake
+    loops over these only: its time follows texels x lights in range, not all lights."""
+    if len(pos) == 0:
+        return np.zeros(0, dtype=np.uint32)
+    pts = np.asarray(P, dtype=np.float64).reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    d = np.maximum(lo - pos, 0.0) + np.maximum(pos - hi, 0.0)  # per axis, 0 inside
+    reach = rng * (1.0 + 1e-5) + 1e-6  # float32 ranges: never cull on rounding
+    return np.nonzero(np.sum(d * d, axis=1) <= reach * reach)[0].astype(np.uint32)
 
 
 def _read(tex: moderngl.Texture, size: tuple[int, int]) -> np.ndarray:
@@ -248,11 +278,19 @@ def run_bake_frame(
     layouts: list[MeshLayout],
     progress: Callable[[MeshLayout], None] | None = None,
 ) -> LightmapBakePass:
-    """One frame of ``engine`` with the bake's light cull and bake pass in its graph."""
+    """One frame of ``engine`` with the bake's light cull and bake pass in its graph.
+
+    The view's side-effect passes (colour correction, AOV output) leave the graph, so
+    the graph culls the G-buffer, lighting and accumulation too: only the light cull,
+    shadow atlas, light upload and frame uniforms run before the bake. (Kept, the
+    view's 1080p reference frame of every static light cost as much as the bake
+    itself: 153 s of the 228 s of issue 35's scene.)"""
     ps = engine._set  # the engine's pass list; the bake swaps one pass and adds one
     bake = LightmapBakePass(engine.delegate, layouts, progress)
     ps.passes = [
-        StaticLightCull(engine.delegate) if p.name == "light_cull" else p for p in ps.passes
+        StaticLightCull(engine.delegate) if p.name == "light_cull" else p
+        for p in ps.passes
+        if not p.side_effect
     ]
     ps.passes.append(bake)
     engine._graph = None
@@ -260,4 +298,4 @@ def run_bake_frame(
     return bake
 
 
-__all__ = ["BakedMap", "LightmapBakePass", "StaticLightCull", "run_bake_frame"]
+__all__ = ["BakedMap", "LightmapBakePass", "StaticLightCull", "mesh_lights", "run_bake_frame"]

@@ -18,7 +18,9 @@ floor's maximum, leaving out pixels the light's own shape covers in Mitsuba (our
 not draw light shapes) and pixels on silhouette edges (Mitsuba integrates over the
 pixel's area, ours shades its centre).
 
-Anything else in the stage (other gprims, distant or dome lights, shaping on an area
+* a DomeLight with a lat-long texture: Mitsuba's ``envmap`` (issue 37).
+
+Anything else in the stage (other gprims, distant lights, shaping on an area
 light, IES, colour temperature, diffuse/specular multipliers, other materials) raises
 ValueError naming the prim: a comparison is made only where the conversion is faithful
 (``stb tradeoff`` reports the reference's error against Mitsuba only then).
@@ -218,6 +220,8 @@ def _light(prim: Usd.Prim, world: np.ndarray, key: str) -> dict:
         v = _input(prim, name, default)
         if v != default and not (name == "shaping:cone:softness" and not v):
             raise ValueError(f"{prim.GetPath()}: inputs:{name} not converted to Mitsuba")
+    if t in ("DomeLight", "DomeLight_1"):
+        return {key: _envmap(prim, world)}
     if t == "SphereLight":
         r = float(_input(prim, "radius", 0.5))
         if point:
@@ -280,6 +284,32 @@ def _light(prim: Usd.Prim, world: np.ndarray, key: str) -> dict:
     shape["bsdf"] = black
     shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": _radiance(prim, area)}}
     return {key: shape}
+
+
+def _envmap(prim: Usd.Prim, world: np.ndarray) -> dict:
+    """A lat-long DomeLight as Mitsuba's ``envmap`` (its lat-long parameterisation is
+    OpenEXR's in a Y-up frame, as UsdLux's): ``scale`` = intensity x 2^exposure; a
+    grey ``color`` only, no poleAxis, a Y-up stage."""
+    if prim.GetTypeName() == "DomeLight_1" or UsdGeom.GetStageUpAxis(prim.GetStage()) != "Y":
+        raise ValueError(f"{prim.GetPath()}: only a DomeLight on a Y-up stage is converted")
+    fmt = prim.GetAttribute("inputs:texture:format")
+    if fmt and fmt.HasAuthoredValue() and fmt.Get() not in ("latlong", "automatic"):
+        raise ValueError(f"{prim.GetPath()}: only a latlong dome texture is converted")
+    asset = prim.GetAttribute("inputs:texture:file").Get()
+    path = asset.resolvedPath if asset is not None else ""
+    if not path:
+        raise ValueError(f"{prim.GetPath()}: a dome without a (found) texture file")
+    rgb = _radiance(prim, 0.0)
+    if max(rgb) - min(rgb) > 1e-9 * max(rgb):
+        raise ValueError(f"{prim.GetPath()}: a coloured dome is not converted")
+    rot = np.eye(4)
+    rot[:3, :3] = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0, keepdims=True)
+    return {
+        "type": "envmap",
+        "filename": path,
+        "scale": float(rgb[0]),
+        "to_world": mi.ScalarTransform4f(rot.tolist()),
+    }
 
 
 def render_mitsuba(

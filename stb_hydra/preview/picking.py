@@ -4,6 +4,9 @@ On a click the delegate's draw batches are rendered once more into an R32UI
 buffer (the viewport's size, depth-tested), each instance writing ``1 + its index``
 in a pick table of (prim path, instance) built from the delegate's meshes in the
 order its batches were built; the clicked texel is read back. Nothing runs per frame.
+A PointInstancer's instance is named by its own path, ``<instancer>/__instance_<id>``
+plus the mesh's path below the prototype (``scene.instancing.instance_light_path``,
+the scheme its lights are synced under), not by the shared prototype mesh.
 """
 
 from __future__ import annotations
@@ -14,9 +17,11 @@ import moderngl
 import numpy as np
 
 from ..renderer.camera import ViewSetup
+from ..scene.instancing import instance_light_path, parse_instance_path
 
 if TYPE_CHECKING:
     from ..renderer.gl_delegate import GLRenderDelegate
+    from ..scene.prims import MeshPrim
 
 _VS = """
 #version 430 core
@@ -48,13 +53,71 @@ def pick_table(delegate: GLRenderDelegate) -> list[list[str]] | None:
         if m is None or not m.visible or len(m.indices) == 0:
             continue
         key = delegate.batch_key(path, m)
-        groups.setdefault(key, []).extend([path] * len(m.world_transforms()))
+        n = len(m.world_transforms())
+        ids = m.instance_ids
+        if m.instancer is not None and ids is not None and len(ids) == n:
+            names = [instance_light_path(m.instancer, int(i), m.instance_rel_path) for i in ids]
+        else:
+            names = [path] * n
+        groups.setdefault(key, []).extend(names)
     table = list(groups.values())
     if len(table) != len(delegate.batches) or any(
         len(t) != b.count for t, b in zip(table, delegate.batches)
     ):
         return None
     return table
+
+
+def find_instance(delegate: GLRenderDelegate, path: str) -> tuple[MeshPrim, int] | None:
+    """(prototype mesh prim, row in its ``instance_transforms``) of a picked
+    PointInstancer instance path, or None (not an instance path, or it is gone)."""
+    parsed = parse_instance_path(path)
+    if parsed is None:
+        return None
+    instancer, iid, rel = parsed
+    for rp in delegate.meshes.values():
+        m = rp.mesh
+        if m is None or m.instancer != instancer or m.instance_rel_path != rel:
+            continue
+        if m.instance_ids is None:
+            continue
+        rows = np.nonzero(m.instance_ids == iid)[0]
+        if len(rows):
+            return m, int(rows[0])
+    return None
+
+
+def instance_bounds(delegate: GLRenderDelegate, path: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """Render-frame (lo, hi) bounds (m) of one picked instance, or None."""
+    hit = find_instance(delegate, path)
+    if hit is None:
+        return None
+    m, row = hit
+    pts = np.c_[np.asarray(m.points, dtype=np.float64), np.ones(len(m.points))]
+    w = (pts @ m.world_transforms()[row])[:, :3]
+    w = w[np.all(np.isfinite(w), axis=1)]
+    return (w.min(0), w.max(0)) if len(w) else None
+
+
+def instance_rows(delegate: GLRenderDelegate, path: str) -> list[tuple[str, str]]:
+    """Properties of one picked instance: its instancer, id and prototype mesh."""
+    hit = find_instance(delegate, path)
+    parsed = parse_instance_path(path)
+    if hit is None or parsed is None:
+        return []
+    m = hit[0]
+    lo_hi = instance_bounds(delegate, path)
+    rows = [
+        ("type", "point instance"),
+        ("instancer", parsed[0]),
+        ("instance id", str(parsed[1])),
+        ("prototype", m.path),
+        ("material", m.material or "(display colour)"),
+    ]
+    if lo_hi is not None:
+        c = 0.5 * (lo_hi[0] + lo_hi[1])
+        rows.append(("centre [m]", ", ".join(f"{v:.4g}" for v in c)))
+    return rows
 
 
 class Picker:

@@ -27,6 +27,7 @@ from ..renderer.frame import RenderSettings
 from ..renderer.gl import use_context
 from .script import Event, ScriptError
 from .session import TEMPORAL_MODES, PreviewSession
+from .session_reload import changes_file
 
 #: Number keys 1..6 switch methods in this order (the issue's list).
 METHOD_KEYS = ("stb", "reference", "sun", "tiled", "clustered", "lighttree")
@@ -279,6 +280,8 @@ class PreviewApp:
 
         class _Handler(FileSystemEventHandler):
             def on_any_event(self, event: FileSystemEvent) -> None:
+                if not changes_file(event):
+                    return
                 for p in (event.src_path, getattr(event, "dest_path", "")):
                     if p and os.path.realpath(os.fsdecode(p)) == target:
                         app._retry_flag = True

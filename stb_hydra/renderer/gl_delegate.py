@@ -24,6 +24,7 @@ from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits as D
 from .delegate import RenderDelegate
+from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
 from .material_binding import MaterialParams, material_params
 from .textures import TextureCache, TextureKey
@@ -108,6 +109,8 @@ class GLRenderDelegate(RenderDelegate):
         #: Some batch's material has a clearcoat lobe (the G-buffer's g_coat exists).
         self.has_clearcoat = False
         self.ies_texture: moderngl.TextureArray | None = None
+        #: The textured dome's map and uniforms (issue 37).
+        self.dome_env = DomeEnvironment(ctx)
         self._ies_version = -1
         self.ies_layer_count = 0
         self.scene_bounds = (np.zeros(3), np.zeros(3))
@@ -536,6 +539,7 @@ class GLRenderDelegate(RenderDelegate):
             self.light_ssbo.release()
         if self.ies_texture is not None:
             self.ies_texture.release()
+        self.dome_env.release()
         self.geometry.clear()
         self.batches.clear()
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
+from ..scene.prims import LightPrim
 from .frame_data import SunSetup
 
 
@@ -29,6 +30,12 @@ class DistantLights:
     #: and the enabled dome lights (light linking reads their masks).
     rows: tuple[int, ...] = ()
     dome_rows: tuple[int, ...] = ()
+    #: The textured dome this frame lights with (``renderer/dome_env.py``; its mean is
+    #: then not in ``ambient``), else None.
+    dome: LightPrim | None = None
+    #: ``sun`` is the dome's own sun (``DomeMap.sun_direction``): the real-time methods
+    #: light the rest of the map from ``DomeMap.rest``; the reference skips ``sun``.
+    dome_sun: bool = False
 
 
 @dataclass

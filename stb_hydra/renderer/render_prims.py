@@ -141,6 +141,8 @@ class MeshRprim(RenderPrim):
             if old is not None and not bits & D.DirtyTransform:
                 m.transform = old.transform
                 m.instance_transforms = old.instance_transforms
+                m.instancer, m.instance_ids = old.instancer, old.instance_ids
+                m.instance_rel_path = old.instance_rel_path
                 m.visible, m.material, m.dynamic = old.visible, old.material, old.dynamic
                 m.link_group, m.shadow_group = old.link_group, old.shadow_group
             else:
@@ -153,6 +155,9 @@ class MeshRprim(RenderPrim):
         if bits & (D.DirtyInstancer | D.DirtyTransform):
             inst = ds.instance_transforms()
             m.instance_transforms = None if inst is None else self._finite_xforms(inst, "instance")
+            m.instancer = ds.entry.instancer
+            m.instance_ids = ds.instance_ids() if inst is not None else None
+            m.instance_rel_path = ds.instance_rel_path()
         if bits & D.DirtyVisibility:
             m.visible = ds.visible()
         if bits & D.DirtyMaterialId:

@@ -49,9 +49,12 @@ SSBO_STB_CLUSTER_RECORDS = 7
 #: Light linking (``LightBuffer.link_ssbo``, common/links.glsl): the distant lights'
 #: masks, ambient per link group, then one mask per in-view light (light-buffer order).
 SSBO_LIGHT_LINKS = 8
+#: ``stb bake``: the light-buffer indices of the lights whose range reaches the mesh
+#: being baked (bake_light.frag; bake/gpu.py).
+SSBO_BAKE_LIGHTS = 9
 #: STB reuse (``-o reuse=on``): previous frame's FoV light index -> this frame's (int,
 #: -1 = no longer in view), bound only when the FoV list changed.
-SSBO_STB_REUSE_REMAP = 9
+SSBO_STB_REUSE_REMAP = 10
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -186,6 +189,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
+        "LIM_DOME_SAMPLES": str(limits.DOME_REFERENCE_SAMPLES),
         "LIM_AREA_SPEC_POINT": f"{limits.AREA_SPEC_POINT:.6f}",
         "LIM_AREA_SPEC_LTC": f"{limits.AREA_SPEC_LTC:.6f}",
         "LIM_GGX_ALPHA_MIN": f"{limits.GGX_ALPHA_MIN:.6f}",
@@ -222,6 +226,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
         "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
+        "SSBO_BAKE_LIGHTS": str(SSBO_BAKE_LIGHTS),
         "SSBO_STB_REUSE_REMAP": str(SSBO_STB_REUSE_REMAP),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),

@@ -650,3 +650,24 @@ def _cube(s: float):
                 (quad, np.tile(n, (4, 1)), np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32))
             )
     return _merge(faces)
+
+
+#: Triangles of a tessellated implicit shape whose area is under this fraction of the
+#: squared bounding-box diagonal are degenerate (a sphere's or cone's collapsed pole
+#: row): the renderer draws them as nothing, and the lightmap UVs of an implicit shape
+#: (``stb bake``) skip them -- the bake and the runtime's lightmap pass both use
+#: :func:`implicit_lightmap_triangles`, so their triangle lists agree.
+IMPLICIT_DEGENERATE_REL_AREA = 1e-10
+
+
+def implicit_lightmap_triangles(g: MeshGeometry) -> np.ndarray:
+    """(k, 3) vertex indices of the non-degenerate triangles of a tessellated implicit
+    shape (object space), in the tessellation's order."""
+    p = np.asarray(g.points, dtype=np.float64)
+    tris = np.asarray(g.indices, dtype=np.int64).reshape(-1, 3)
+    if len(p) == 0 or len(tris) == 0:
+        return tris
+    diag2 = float(np.sum((p.max(axis=0) - p.min(axis=0)) ** 2))
+    t = p[tris]
+    area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+    return tris[area > IMPLICIT_DEGENERATE_REL_AREA * diag2]

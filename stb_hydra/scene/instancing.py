@@ -53,7 +53,8 @@ class InstancerExpansion:
     instance_xforms: np.ndarray
     #: Prototype index of each row of ``instance_xforms``.
     proto_of_instance: np.ndarray
-    #: Original instance ids (for ``invisibleIds`` / stable light paths).
+    #: Each row's index among all the instancer's instances (USD's instance id when
+    #: ``ids`` is not authored): stable light and picking paths.
     instance_ids: np.ndarray
     meshes: list[PrototypePart] = field(default_factory=list)
     lights: list[PrototypePart] = field(default_factory=list)
@@ -63,7 +64,21 @@ class InstancerExpansion:
 
 
 def instance_light_path(instancer_path: str, instance_id: int, rel_path: str) -> str:
+    """The synthesised path of one instance's copy of a prototype prim (lights are
+    synced under it; picking names a mesh instance by it)."""
     return f"{instancer_path}/__instance_{instance_id}{rel_path}"
+
+
+def parse_instance_path(path: str) -> tuple[str, int, str] | None:
+    """(instancer path, instance id, path below the prototype root's parent) of a
+    path made by :func:`instance_light_path`, else None."""
+    head, sep, tail = path.partition("/__instance_")
+    if not sep or not head:
+        return None
+    digits, slash, rest = tail.partition("/")
+    if not digits.isdigit():
+        return None
+    return head, int(digits), slash + rest
 
 
 def expand_point_instancer(
@@ -80,7 +95,15 @@ def expand_point_instancer(
     inst = UsdGeom.PointInstancer(prim)
     path = str(prim.GetPath())
     warnings: list[str] = []
-    xf = inst.ComputeInstanceTransformsAtTime(time, time)
+    # All instances, masked below with ComputeMaskAtTime: the default ApplyMask drops
+    # the invisible ones here, which shifted every later instance's index and
+    # prototype (protoIndices is not masked).
+    xf = inst.ComputeInstanceTransformsAtTime(
+        time,
+        time,
+        UsdGeom.PointInstancer.IncludeProtoXform,
+        UsdGeom.PointInstancer.IgnoreMask,
+    )
     mats = np.asarray(xf, dtype=np.float64).reshape(-1, 4, 4) if xf else np.zeros((0, 4, 4))
     proto_idx = inst.GetProtoIndicesAttr().Get(time)
     proto_idx = np.asarray(proto_idx if proto_idx is not None else [], dtype=np.int64)

@@ -20,8 +20,9 @@ Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
   also for hemispherical and symmetry-folded files; ``IesProfile.power``).
 * DistantLight: ``intensity`` -> illuminance (lux) facing the light:
   ``E = L * pi sin^2(theta_max)`` (theta_max = angle/2), ``E = L`` when the
-  angle is 0 or ``normalize`` is on. DomeLight: uniform radiance L (nits),
-  times the solid-angle average of its texture.
+  angle is 0 or ``normalize`` is on. DomeLight: radiance L (nits) times its
+  texture (``scene/dome.py``; ``intensity`` carries L times the texture's
+  solid-angle mean); ``normalize`` has no effect on a dome (it has no size).
 * Positions/directions/lengths are in the render frame (Y up, metres).
 
 Bad input never raises: the light is disabled and a one-line warning naming the
@@ -37,7 +38,7 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from pxr import Gf, Sdf, Usd, UsdLux
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdLux
 
 from .. import limits
 from ..color import LUMINANCE_REC709
@@ -680,7 +681,10 @@ def _set_intensity(
     t = lp.type
     if t == prims.DISTANT_LIGHT:
         lp.intensity = radiance * _read_distant_angle(lp, a, ctx, normalize)
+    elif t == prims.RECT_LIGHT and a.has("inputs:texture:file"):
+        lp.intensity = lp.intensity * _rect_texture_mean(lp, a, ctx)
     elif t == prims.DOME_LIGHT:
+        lp.dome_scale = radiance
         lp.intensity = radiance * _dome_texture_average(lp, a, ctx)
     elif t == prims.PORTAL_LIGHT:
         ctx.warn_once("portal", f"light <{lp.path}>: PortalLight is not supported; ignored")
@@ -861,11 +865,15 @@ def _mesh_center(prim: Usd.Prim, world: np.ndarray) -> np.ndarray | None:
     return (np.r_[c, 1.0] @ world)[:3]
 
 
-_dome_avg_cache: dict[str, np.ndarray] = {}
-
-
 def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
-    """Solid-angle-weighted mean RGB of a lat-long dome texture (1 without one)."""
+    """Read a dome's texture into ``lp.dome_map`` (``scene/dome.py``: every UsdLux
+    format resampled into a render-frame lat-long map, ``poleAxis`` / the stage's up
+    axis and the light's rotation folded in) and return its solid-angle mean RGB (1
+    without a texture; a missing or unreadable file warns once and the dome stays
+    uniform white). Also reads ``visibleInPrimaryRay`` (camera visibility)."""
+    from . import dome
+
+    lp.camera_visible = bool(a.get("visibleInPrimaryRay", True))
     asset = a.get("inputs:texture:file", None)
     if asset is None or not getattr(asset, "path", ""):
         return np.ones(3)
@@ -874,33 +882,47 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
     if not resolved:
         _warn(lp, ctx, f"dome texture '{asset.path}' not found; using a uniform white dome")
         return np.ones(3)
-    cached = _dome_avg_cache.get(resolved)
-    if cached is not None:
-        return cached
+    fmt = str(a.get("inputs:texture:format", "automatic"))
+    if fmt not in dome.FORMATS:
+        _warn(lp, ctx, f"texture:format '{fmt}' unknown; reading it as latlong")
+        fmt = "latlong"
+    pole = "Y"
+    if a.prim.GetTypeName() == "DomeLight_1":
+        pole = str(a.get("poleAxis", "scene"))
+        if pole not in dome.POLE_AXES:
+            _warn(lp, ctx, f"poleAxis '{pole}' is not scene|Y|Z; using scene")
+            pole = "scene"
+    up_z = UsdGeom.GetStageUpAxis(ctx.stage) == UsdGeom.Tokens.z
+    rot = dome.dome_rotation(lp.transform, pole, up_z)
+    attr = a.attr("inputs:texture:file") or a.attr("texture:file")
+    space = str(attr.GetColorSpace() or "") if attr is not None else ""
     try:
-        import OpenImageIO as oiio
-
-        buf = oiio.ImageBuf(resolved)
-        # Read it all now: a lazily read (image cache) buffer of a truncated file
-        # resizes for minutes, every missing tile retried (found by tools/fuzz.py).
-        if buf.has_error or not buf.read(0, 0, True):
-            raise OSError(buf.geterror() or "cannot read it")
-        # Average on a reduced copy: exact enough for a uniform ambient term.
-        spec = buf.spec()
-        w = max(1, min(spec.width, 256))
-        h = max(1, min(spec.height, 128))
-        small = oiio.ImageBufAlgo.resize(buf, roi=oiio.ROI(0, w, 0, h, 0, 1, 0, spec.nchannels))
-        px = np.asarray(small.get_pixels(oiio.FLOAT), dtype=np.float64).reshape(h, w, -1)
-        rgb = px[..., :3] if px.shape[2] >= 3 else np.repeat(px[..., :1], 3, axis=2)
-        rgb = np.where(np.isfinite(rgb), rgb, 0.0)
-        lat = (np.arange(h) + 0.5) / h * math.pi
-        wts = np.sin(lat)[:, None]
-        avg = (rgb * wts[..., None]).sum(axis=(0, 1)) / (wts.sum() * w)
+        lp.dome_map = dome.load_dome_map(resolved, fmt, rot, space)
     except Exception as exc:  # noqa: BLE001 - bad input must never crash
         _warn(lp, ctx, f"dome texture '{asset.path}' unreadable ({exc}); using white")
-        avg = np.ones(3)
-    _dome_avg_cache[resolved] = avg
-    return avg
+        return np.ones(3)
+    return np.asarray(lp.dome_map.mean, dtype=np.float64)
+
+
+def _rect_texture_mean(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
+    """Mean RGB of a RectLight's ``inputs:texture:file`` (decoded like material
+    textures): the rect is shaded as a uniform emitter of that colour and power (1
+    without a usable texture; a missing or unreadable one warns)."""
+    from . import dome
+
+    asset = a.get("inputs:texture:file", None)
+    if asset is None or not getattr(asset, "path", ""):
+        return np.ones(3)
+    resolved = asset.resolvedPath
+    lp.texture_file = resolved or None
+    if not resolved:
+        _warn(lp, ctx, f"rect texture '{asset.path}' not found; emitting uniform white")
+        return np.ones(3)
+    try:
+        return dome.texture_mean(resolved)
+    except Exception as exc:  # noqa: BLE001 - bad input must never crash
+        _warn(lp, ctx, f"rect texture '{asset.path}' unreadable ({exc}); emitting white")
+        return np.ones(3)
 
 
 def area_half_extent(lp: LightPrim) -> float:

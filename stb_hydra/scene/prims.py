@@ -79,6 +79,30 @@ _EYE4 = np.eye(4)
 _EYE4.flags.writeable = False
 
 
+@dataclass(eq=False)
+class DomeMap:
+    """A dome texture resampled into the render frame (``scene/dome.py``): an OpenEXR
+    lat-long map, Y up, linear Rec.709 radiance factors (the light's
+    ``LightPrim.dome_scale`` multiplies them)."""
+
+    #: (h, w, 3) float32, w = 2 h; row 0 is the zenith (+Y), column w/2 faces +Z.
+    latlong: np.ndarray
+    #: Solid-angle mean RGB of ``latlong`` (the uniform dome of the same power).
+    mean: np.ndarray
+    #: (9, 3) SH coefficients of E(n) / pi (unshadowed Lambert response, albedo 1).
+    sh9: np.ndarray
+    #: Resolved file path and the concrete ``texture:format`` it was read as.
+    source: str = ""
+    format: str = "latlong"
+    #: A sun split off the map (``scene.dome.split_sun``; None: none): the map without
+    #: it, its SH9, the unit direction to it (render frame) and its illuminance facing
+    #: it per map unit (lux RGB). The real-time methods light it as a shadowed sun.
+    rest: np.ndarray | None = None
+    rest_sh9: np.ndarray | None = None
+    sun_direction: np.ndarray | None = None
+    sun_illuminance: np.ndarray | None = None
+
+
 @dataclass
 class LightPrim:
     """One UsdLux light in physical units (render frame, metres).
@@ -88,7 +112,8 @@ class LightPrim:
         light's axis (peak of the far-field distribution), every UsdLux scalar
         (intensity, exposure, colour, temperature, normalize, shape area) applied;
       * distantLight: illuminance in lux (RGB) on a surface facing the light;
-      * domeLight: radiance in nits (RGB), uniform (texture average applied).
+      * domeLight: radiance in nits (RGB), uniform (a texture's solid-angle mean
+        applied; the texture itself is ``dome_map`` x ``dome_scale``).
     """
 
     path: str
@@ -152,8 +177,15 @@ class LightPrim:
     peak_intensity: float = 0.0
     # DistantLight.
     angle: float = 0.0  # angular diameter, degrees
-    # DomeLight.
+    # DomeLight (and RectLight ``inputs:texture:file``).
     texture_file: str | None = None
+    #: The dome's texture in the render frame (None: uniform dome, ``intensity``).
+    dome_map: DomeMap | None = None
+    #: RGB radiance (nits) per unit of ``dome_map``: ``intensity = dome_scale *
+    #: dome_map.mean``.
+    dome_scale: np.ndarray = field(default_factory=lambda: _ZERO3)
+    #: The camera sees the light (dome background; ``visibleInPrimaryRay``).
+    camera_visible: bool = True
     #: Light-linking: False when either collection is not the default "everything".
     default_linking: bool = True
     #: Bit g: the light lights the meshes of light-link group g (``scene/links.py``;
@@ -184,6 +216,12 @@ class MeshPrim:
     #: (k, 4, 4) per-instance transforms (render frame) -- PointInstancer / shared
     #: prototypes. ``None`` = one instance with ``transform``.
     instance_transforms: np.ndarray | None = None
+    #: PointInstancer of a prototype mesh, the instance id of each row of
+    #: ``instance_transforms`` and the mesh's path below the prototype root's parent
+    #: (``scene.instancing.instance_light_path`` names one instance by them).
+    instancer: str | None = None
+    instance_ids: np.ndarray | None = None
+    instance_rel_path: str = ""
     display_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.18))
     #: (n, 3) per-vertex colour when displayColor varies over the mesh, else None.
     vertex_colors: np.ndarray | None = None

@@ -145,8 +145,8 @@ class LightDataSource(_DataSource):
         scale changed (shape-dependent intensity needs a full re-read)."""
         old = lp.world_scale
         set_transform(lp, self.world_matrix())
-        if lp.type == prims.MESH_LIGHT:
-            return False
+        if lp.type == prims.MESH_LIGHT or lp.dome_map is not None:
+            return False  # a textured dome's map is resampled in its new orientation
         return abs(lp.world_scale - old) <= 1e-9 * max(1.0, old)
 
 
@@ -162,6 +162,15 @@ class MeshDataSource(_DataSource):
 
     def instance_transforms(self) -> np.ndarray | None:
         return self.index.instance_transforms(self.entry)
+
+    def instance_ids(self) -> np.ndarray | None:
+        """PointInstancer instance id of each row of ``instance_transforms``."""
+        return self.index.instance_ids(self.entry)
+
+    def instance_rel_path(self) -> str:
+        """The prototype mesh's path below its prototype root's parent ("" if none)."""
+        part = self.entry.part
+        return str(getattr(part, "rel_path", "")) if self.entry.instancer else ""
 
     def dynamic(self) -> bool:
         return self.index.is_dynamic(self.entry)
@@ -340,6 +349,12 @@ class StageSceneIndex(SceneIndex):
         rows = exp.proto_of_instance == e.part.proto_index
         m = exp.instance_xforms[rows]
         return e.part.local[None] @ m @ (inst_world @ self.render_from_stage)[None]
+
+    def instance_ids(self, e: _Entry) -> np.ndarray | None:
+        if e.instancer is None:
+            return None
+        exp = self._instancers[e.instancer]
+        return exp.instance_ids[exp.proto_of_instance == e.part.proto_index].copy()
 
     def is_dynamic(self, e: _Entry) -> bool:
         """``stb:dynamic`` on the prim or an ancestor, else time-varying transform/points."""

@@ -6,7 +6,7 @@
 * :mod:`.common`: the USDA writer, meshes, photometry helpers and input-asset lookup.
 
 Each generator module is also a command: ``python -m stb_hydra.scenegen.lights OUT ...``.
-The same arguments give byte-identical text. Input assets outside the package (IES
-profiles, prefabs, the chess set) come from explicit arguments, else from the source
-checkout / shared test data (see :func:`.common.ies_dir`, :func:`.common.chess_set`).
+The same arguments give byte-identical text. Input assets: the IES profiles and the
+orbs' prefabs ship as package data (``stb_hydra/data``, :func:`.common.ies_dir`); the
+chess set comes from an explicit path or the shared test data (:func:`.common.chess_set`).
 """

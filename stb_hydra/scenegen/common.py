@@ -29,46 +29,57 @@ from pathlib import Path
 import numpy as np
 
 # --------------------------------------------------------------------------------------
-# Input assets. The generators reference files that are not part of the installed
-# package: usd_scenes/ies/*.ies and usd_scenes/prefabs/*.usda of the source checkout,
-# and the OpenChessSet of the shared test data. Each is taken from an explicit
-# argument first; the checkout's copy is only a fallback, looked up when needed
-# (never at import), so an installed package works as long as paths are given.
+# Input assets. The IES profiles of ``gen:lights`` and the two prefabs of ``gen:orbs``
+# ship with the package (``stb_hydra/data/ies``, ``stb_hydra/data/prefabs``: copies of
+# the checkout's usd_scenes/ies and usd_scenes/prefabs/{enemy_orb,wall_torch}.usda,
+# which tests/test_scenes.py holds identical), read through importlib.resources; an
+# explicit argument wins. The OpenChessSet of the shared test data is not shipped:
+# an explicit path, ``$STB_SHARED``, or ``../shared`` beside the source checkout.
 # --------------------------------------------------------------------------------------
 
 #: The source checkout this module lives in, if it is one (``stb_hydra/scenegen/`` two
-#: levels below the repository root); an installed package has no ``usd_scenes`` there.
+#: levels below the repository root); an installed package has no ``shared`` beside it.
 CHECKOUT = Path(__file__).resolve().parents[2]
 #: Environment variable naming the shared test-data root (holds ``testdata/``).
 SHARED_ENV = "STB_SHARED"
 CHESS_SET_REL = Path("testdata") / "scenes" / "OpenChessSet" / "chess_set.usda"
 
 
-def _checkout_dir(name: str, what: str, explicit: Path | str | None, option: str) -> Path:
+def package_data_dir(name: str) -> Path:
+    """The folder ``name`` of the package data (``stb_hydra/data/<name>``) as a file
+    system path (USD asset paths name real files); FileNotFoundError when the package
+    is not installed as files (a zip import)."""
+    from importlib import resources
+
+    d = resources.files("stb_hydra.data").joinpath(name)
+    p = Path(str(d))
+    if not p.is_dir():
+        raise FileNotFoundError(
+            f"package data folder stb_hydra/data/{name} not found at {p} (installed as a zip?)"
+        )
+    return p
+
+
+def _input_dir(name: str, what: str, explicit: Path | str | None) -> Path:
     if explicit is not None:
         d = Path(explicit).resolve()
         if not d.is_dir():
             raise FileNotFoundError(f"{what} folder not found: {d}")
         return d
-    d = CHECKOUT / "usd_scenes" / name
-    if d.is_dir():
-        return d
-    raise FileNotFoundError(
-        f"{what} not found: pass {option} (usd_scenes/{name} of a stb_hydra source "
-        "checkout; the installed package does not ship it)"
-    )
+    return package_data_dir(name)
 
 
 def ies_dir(explicit: Path | str | None = None) -> Path:
-    """Folder of the IES profiles (``<name>.ies``): ``explicit``, else the checkout's
-    ``usd_scenes/ies``; FileNotFoundError when neither exists."""
-    return _checkout_dir("ies", "IES profiles", explicit, "ies_dir / --ies-dir")
+    """Folder of the IES profiles (``<name>.ies``): ``explicit``, else the package's
+    ``stb_hydra/data/ies``; FileNotFoundError when ``explicit`` is not a folder."""
+    return _input_dir("ies", "IES profiles", explicit)
 
 
 def prefab_dir(explicit: Path | str | None = None) -> Path:
-    """Folder of the prefab layers (``<name>.usda``): ``explicit``, else the checkout's
-    ``usd_scenes/prefabs``; FileNotFoundError when neither exists."""
-    return _checkout_dir("prefabs", "prefab library", explicit, "prefab_dir / --prefab-dir")
+    """Folder of the prefab layers (``<name>.usda``): ``explicit``, else the package's
+    ``stb_hydra/data/prefabs`` (the generators' prefabs: ``enemy_orb``, ``wall_torch``);
+    FileNotFoundError when ``explicit`` is not a folder."""
+    return _input_dir("prefabs", "prefab library", explicit)
 
 
 def chess_set(explicit: Path | str | None = None) -> Path:

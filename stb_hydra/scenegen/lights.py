@@ -18,7 +18,8 @@ In Python (tests, benchmarks, ``stb bench gen:lights:N``)::
 Light types (``--types``): sphere (SphereLight), spot (SphereLight + ShapingAPI
 cone, aimed down), disk (DiskLight, facing down), rect (RectLight, facing down),
 ies (SphereLight + one of the IES profiles of usd_scenes/ies, normalised, aimed down;
-``ies_dir`` / ``--ies-dir`` names that folder, by default the source checkout's).
+``ies_dir`` / ``--ies-dir`` names that folder, by default the package's copy,
+``stb_hydra/data/ies``).
 Intensities are UsdLux luminance in nits derived from the drawn flux:
 sphere/spot L = Phi/(4 pi * pi r^2) (spot: before the cone cuts it), ies
 L = Phi/(2 pi * pi r^2) (normalised hemispherical profile), disk L = Phi/(pi^2 r^2),
@@ -453,7 +454,7 @@ def main(argv: list[str] | None = None) -> int:
         "--ies-dir",
         type=Path,
         default=None,
-        help="folder of the IES profiles (default: the checkout's usd_scenes/ies)",
+        help="folder of the IES profiles (default: the package's stb_hydra/data/ies)",
     )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()

@@ -11,10 +11,11 @@ number alive grows roughly linearly from a handful at frame 1 to N.
     python -m stb_hydra.scenegen.orbs out/orbs.usda --orbs 200 --frames 240
 
 (``python tools/gen_orbs.py ...`` in a checkout is the same command.)
-Orbs reference ``usd_scenes/prefabs/enemy_orb.usda`` (relative to OUT, absolute for
+Orbs reference the prefab ``enemy_orb.usda`` (relative to OUT, absolute for
 in-memory stages; ``--prefab-dir`` / ``prefab_dir`` names the prefab folder, by
-default the source checkout's) as instanceable prims: the renderer must honour time-varying
-visibility on instance roots (an invisible prim hides its lights too).
+default the package's copy ``stb_hydra/data/prefabs``) as instanceable prims: the
+renderer must honour time-varying visibility on instance roots (an invisible prim hides
+its lights too).
 """
 
 from __future__ import annotations
@@ -293,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
         type=Path,
         default=None,
         help="folder of enemy_orb.usda / wall_torch.usda "
-        "(default: the checkout's usd_scenes/prefabs)",
+        "(default: the package's stb_hydra/data/prefabs)",
     )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()

@@ -104,6 +104,14 @@ RULES: dict[str, Rule] = {
             "pre-21.02 un-namespaced light attribute (no 'inputs:' prefix)",
             "rename to the 'inputs:' name given in the message",
         ),
+        _r(
+            "dome_texture_missing",
+            ERROR,
+            "LightValues",
+            "a DomeLight's (or RectLight's) inputs:texture:file does not resolve (any "
+            "authored time): it renders as a uniform dome / a plain rect",
+            "ship the texture inside the library and fix the relative path",
+        ),
         # -- IesProfile --
         _r(
             "ies_missing",

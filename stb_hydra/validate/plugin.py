@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable
+from importlib import resources
 from pathlib import Path
 
 from pxr import Plug, Sdf, Usd, UsdValidation
@@ -32,7 +33,8 @@ from .rules_photometry import check_photometry
 from .rules_shadows import check_shadows
 from .rules_units import check_units
 
-PLUGIN_DIR = Path(__file__).resolve().parent
+#: The folder of this plugin's plugInfo.json (package data, through importlib.resources).
+PLUGIN_DIR = Path(str(resources.files("stb_hydra.validate")))
 
 _TYPE = {
     ERROR: UsdValidation.ValidationErrorType.Error,

@@ -122,6 +122,7 @@ def check_light_values(prim: Usd.Prim) -> list[Finding]:
                     f"{more}",
                 )
             )
+    out.extend(_check_light_texture(prim, names, path))
     legacy = sorted(n for n in names if n in LEGACY_INPUTS)
     if legacy:
         pairs = ", ".join(f"'{n}' -> 'inputs:{n}'" for n in legacy)
@@ -133,6 +134,26 @@ def check_light_values(prim: Usd.Prim) -> list[Finding]:
             )
         )
     return out
+
+
+def _check_light_texture(prim: Usd.Prim, names: set[str], path: str) -> list[Finding]:
+    """``dome_texture_missing``: a named dome / rect texture that does not resolve."""
+    if prim.GetTypeName() not in ("DomeLight", "DomeLight_1", "RectLight"):
+        return []
+    fa = _attr(prim, names, "texture:file")
+    if fa is None:
+        return []
+    missing = [(t, a) for t, a, resolved in _asset_values(fa) if not resolved]
+    if not missing:
+        return []
+    return [
+        finding(
+            "dome_texture_missing",
+            path,
+            f"{fa.GetName()} '{missing[0][1]}' does not resolve "
+            f"({fmt_times(t for t, _ in missing)})",
+        )
+    ]
 
 
 # --- IES ------------------------------------------------------------------------------

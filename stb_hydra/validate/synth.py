@@ -238,6 +238,13 @@ class Plant:
     opened: bool = True
 
 
+def _dome_missing(p: Prefab, lib: Path, ies_src: Path) -> None:
+    p.extra += (
+        '    def DomeLight "Sky"\n    {\n'
+        "        asset inputs:texture:file = @../textures/missing_sky.exr@\n    }\n"
+    )
+
+
 PLANTS: dict[str, Plant] = {
     "intensity_nan": Plant(_set("float inputs:intensity", "nan"), (("intensity_invalid", L0),)),
     "intensity_negative": Plant(_set("float inputs:intensity", "-5"), (("intensity_invalid", L0),)),
@@ -261,6 +268,11 @@ PLANTS: dict[str, Plant] = {
             "down.ies", "luxtest__bega_84693k4.ies", {"float inputs:shaping:ies:angleScale": "-0.3"}
         ),
         (("ies_angle_scale", L0),),
+    ),
+    "dome_texture_missing": Plant(
+        _dome_missing,
+        (("dome_texture_missing", "/Prefab/Sky"),),
+        builtin=("usdUtilsValidators:MissingReferenceValidator",),
     ),
     "flux_low": Plant(_set("float inputs:intensity", "1"), (("flux_light", L0),)),
     "flux_prefab": Plant(_flux_prefab, (("flux_prefab", "/Prefab"),)),

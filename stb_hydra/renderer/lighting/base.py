@@ -154,8 +154,11 @@ class LightingMethod:
             defines["HAS_SUN"] = True
         if frame.sun.enabled and frame.sun.shadow:
             defines["HAS_SUN_SHADOW"] = True
-        if float(frame.ambient.max()) > 0:
+        dome = frame.get(DistantLights).dome
+        if float(frame.ambient.max()) > 0 or dome is not None:
             defines["HAS_AMBIENT"] = True
+        if dome is not None:
+            defines["HAS_DOME_MAP"] = True  # the textured dome (common/dome.glsl)
         if frame.get(LightBuffer).links:
             defines["HAS_LINKS"] = True  # common/links.glsl
         if self.clearcoat:
@@ -220,6 +223,8 @@ class LightingMethod:
             sun.texture.use(unit)
             cast(moderngl.Uniform, prog["u_sun_shadow"]).value = unit
             unit += 1
+        if d is not None and "u_dome_mult" in prog:  # common/dome.glsl
+            unit = d.dome_env.bind(prog, unit)
         return unit
 
     def prepare(self, frame: FrameContext) -> None:

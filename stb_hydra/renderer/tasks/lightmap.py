@@ -26,6 +26,13 @@ import moderngl
 import numpy as np
 from pxr import Usd, UsdGeom
 
+from ...scene.geometry import (
+    IMPLICIT_TYPES,
+    _read_topology,
+    _Topology,
+    implicit_lightmap_triangles,
+    tessellate_implicit,
+)
 from ...scene.prims import CONE_CUTOFF_TEST_RAD
 from ..frame import FrameContext
 from ..fullscreen import fullscreen_vao
@@ -189,7 +196,9 @@ class LightmapTask(Pass):
         parts: list[tuple[str, np.ndarray, list[np.ndarray]]] = []
         for prim in self.stage.Traverse():
             fa = prim.GetAttribute(FILE_ATTR)
-            if not fa or not fa.HasAuthoredValue() or not prim.IsA(UsdGeom.Mesh):
+            if not fa or not fa.HasAuthoredValue():
+                continue
+            if not (prim.IsA(UsdGeom.Mesh) or prim.GetTypeName() in IMPLICIT_TYPES):
                 continue
             path = str(prim.GetPath())
             try:
@@ -232,35 +241,46 @@ class LightmapTask(Pass):
         return [_Lightmapped("atlas", vbo, vao, texs, len(allv))]
 
     def _read_one(self, prim: Usd.Prim, fa: Usd.Attribute) -> tuple[np.ndarray, list[np.ndarray]]:
-        """(vertices (3 m, 5): world position, lightmap UV; lightmap planes) of one mesh."""
-        from ...scene.geometry import _read_topology, _Topology
+        """(vertices (3 m, 5): world position, lightmap UV; lightmap planes) of one mesh.
 
+        An implicit shape (``Cube``, ``Sphere``, ...) is tessellated as the renderer
+        draws it; its faceVarying UVs are per corner of its non-degenerate triangles
+        (``implicit_lightmap_triangles``, 3 per triangle), as ``stb bake`` writes them."""
         path = str(prim.GetPath())
         rp = self.delegate.meshes.get(path)
         mesh = rp.mesh if rp is not None else None
         if mesh is None or not mesh.visible or mesh.dynamic:
             raise ValueError("the mesh is not drawn as static geometry")
-        topo = _read_topology(prim, UsdGeom.Mesh(prim), Usd.TimeCode.Default())
-        if not isinstance(topo, _Topology):
-            raise ValueError("no usable topology")
+        tc = Usd.TimeCode.Default()
+        if prim.GetTypeName() in IMPLICIT_TYPES:
+            g = tessellate_implicit(prim, tc)
+            if g is None:
+                raise ValueError(f"implicit {prim.GetTypeName()} does not tessellate")
+            points = np.asarray(g.points, dtype=np.float64)
+            fvi = implicit_lightmap_triangles(g).reshape(-1)
+            corners = np.arange(len(fvi), dtype=np.int64)
+        else:
+            topo = _read_topology(prim, UsdGeom.Mesh(prim), tc)
+            if not isinstance(topo, _Topology):
+                raise ValueError("no usable topology")
+            points = topo.points.astype(np.float64)
+            fvi = topo.fvi
+            corners = topo.corners.reshape(-1)
         pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(UV_PRIMVAR)
         uv = pv.Get() if pv else None
         if uv is None or pv.GetInterpolation() != UsdGeom.Tokens.faceVarying:
             raise ValueError(f"primvars:{UV_PRIMVAR} is not authored faceVarying")
         uv_fv = np.asarray(uv, dtype=np.float32).reshape(-1, 2)
-        if len(uv_fv) != len(topo.fvi):
-            raise ValueError(f"{len(uv_fv)} lightmap UVs for {len(topo.fvi)} face-vertices")
+        if len(uv_fv) != len(fvi):
+            raise ValueError(f"{len(uv_fv)} lightmap UVs for {len(fvi)} face-vertices")
         asset = fa.Get()
         file = getattr(asset, "resolvedPath", "") or ""
         if not file or not Path(file).is_file():
             raise OSError(f"file '{getattr(asset, 'path', asset)}' not found")
         planes = read_lightmap(file)
         xf = np.asarray(mesh.transform, dtype=np.float64)
-        pts = np.c_[topo.points.astype(np.float64), np.ones(len(topo.points))] @ xf
-        corners = topo.corners.reshape(-1)
-        verts = np.concatenate(
-            [pts[topo.fvi[corners], :3].astype(np.float32), uv_fv[corners]], axis=1
-        )
+        pts = np.c_[points, np.ones(len(points))] @ xf
+        verts = np.concatenate([pts[fvi[corners], :3].astype(np.float32), uv_fv[corners]], axis=1)
         if not np.all(np.isfinite(verts)) or uv_fv.min() < 0.0 or uv_fv.max() > 1.0:
             raise ValueError("non-finite positions or lightmap UVs outside [0, 1]")
         return verts, planes

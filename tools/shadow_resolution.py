@@ -1,0 +1,127 @@
+"""Shadow-map resolution policy, measured (issue 33 item 5): map sizes, atlas texels,
+capture time and the image against a render whose every map is 4x denser (2 octaves
+up the policy's own target, ``--truth-scale``), with the reference method, offline
+(every map captured before the frame).
+
+Works on any revision whose scheduler calls ``stb_hydra.shadows.policy.target_texels``
+(the truth patches that function), so before / after comparisons run the same script:
+
+    .venv/bin/python tools/shadow_resolution.py usd_scenes/default.usda --size 320x180
+    python -m stb_hydra.scenegen.chess /tmp/chess64.usda --lights 64
+    .venv/bin/python tools/shadow_resolution.py /tmp/chess64.usda --size 320x180
+
+Prints one JSON object per scene (``--json`` writes them). Figures: docs/PERFORMANCE.md
+"Map resolution against the screen footprint".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _render(scene: str, width: int, height: int, frames: int, scale: float) -> dict:
+    from pxr import Usd
+
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+    from stb_hydra.shadows import policy
+
+    orig = policy.target_texels
+
+    def scaled(*a, **kw):
+        return orig(*a, **kw) * scale
+
+    policy.target_texels = scaled  # type: ignore[assignment]
+    try:
+        stage = Usd.Stage.Open(scene)
+        settings = RenderSettings(
+            width=width, height=height, lighting="reference", accumulate=frames, profile=True
+        )
+        eng = Engine(stage, settings)
+        try:
+            eng.request_aovs({"color"})
+            t0 = time.perf_counter()
+            eng.render(None)
+            wall = time.perf_counter() - t0
+            img = np.array(eng.aovs["color"][..., :3], dtype=np.float32)
+            atlas = eng.task("shadow_atlas")
+            sch = atlas.scheduler
+            sides = np.array(
+                [sch.rect(k).size for k in atlas.registered_keys() if sch.rect(k) is not None]
+            )
+            cap = sum(
+                t.get("prepare.shadow_atlas", 0.0) + t.get("shadow_atlas", 0.0)
+                for t in eng.timings.frames
+            )
+            st = atlas.last_stats
+        finally:
+            eng.release()
+    finally:
+        policy.target_texels = orig  # type: ignore[assignment]
+    return {
+        "img": img,
+        "maps": len(sides),
+        "side_median": float(np.median(sides)) if len(sides) else 0.0,
+        "side_max": int(sides.max()) if len(sides) else 0,
+        "side_min": int(sides.min()) if len(sides) else 0,
+        "mtexels": round(float((sides.astype(np.float64) ** 2).sum()) / 1e6, 3),
+        "unplaced": st.unplaced,
+        "undersized": st.undersized,
+        "shadow_ms": round(cap, 1),
+        "wall_s": round(wall, 2),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("scenes", nargs="+")
+    ap.add_argument("--size", default="320x180")
+    ap.add_argument("--frames", type=int, default=4, help="accumulated frames")
+    ap.add_argument("--truth-scale", type=float, default=4.0)
+    ap.add_argument("--json", type=Path)
+    ap.add_argument(
+        "--against",
+        type=Path,
+        help="also compare with this .npy image (e.g. another revision's --save)",
+    )
+    ap.add_argument("--save", type=Path, help="save the policy's image as .npy (one scene)")
+    ap.add_argument("--save-truth", type=Path, help="save the truth image as .npy (one scene)")
+    a = ap.parse_args()
+    from stb_hydra.metrics.image import flip_hdr, relmse
+
+    w, h = (int(v) for v in a.size.lower().split("x"))
+    rows = []
+    for scene in a.scenes:
+        got = _render(scene, w, h, a.frames, 1.0)
+        truth = _render(scene, w, h, a.frames, a.truth_scale)
+        img, ref = got.pop("img"), truth.pop("img")
+        row = {
+            "scene": scene,
+            "size": a.size,
+            **got,
+            "truth": truth,
+            "hdr_flip_vs_truth": round(float(flip_hdr(img, ref)), 4),
+            "relmse_vs_truth": float(f"{relmse(img, ref):.3g}"),
+            "mean_ratio": round(float(img.mean() / max(ref.mean(), 1e-30)), 4),
+        }
+        if a.save:
+            np.save(a.save, img)
+        if a.save_truth:
+            np.save(a.save_truth, ref)
+        if a.against:
+            other = np.load(a.against)
+            row["hdr_flip_vs_against"] = round(float(flip_hdr(img, other)), 4)
+            row["relmse_vs_against"] = float(f"{relmse(img, other):.3g}")
+        print(json.dumps(row))
+        rows.append(row)
+    if a.json:
+        a.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
