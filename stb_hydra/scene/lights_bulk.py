@@ -52,6 +52,40 @@ _BULK_TYPES = {
 _LEGACY = frozenset(LEGACY_INPUTS)
 _COLOUR_TYPES = (Gf.Vec3f, Gf.Vec3d, Gf.Vec3h, tuple)
 
+#: The inputs the bulk path reads (``read_light``'s, for the four analytic types).
+_INPUTS = frozenset(
+    (
+        "inputs:intensity",
+        "inputs:exposure",
+        "inputs:color",
+        "inputs:normalize",
+        "inputs:diffuse",
+        "inputs:specular",
+        "inputs:enableColorTemperature",
+        "inputs:colorTemperature",
+        "inputs:radius",
+        "inputs:width",
+        "inputs:height",
+        "inputs:length",
+        "inputs:shaping:cone:angle",
+        "inputs:shaping:cone:softness",
+        "inputs:shaping:focus",
+        "inputs:shaping:focusTint",
+        "inputs:shaping:ies:file",
+        "inputs:shaping:ies:angleScale",
+        "inputs:shaping:ies:normalize",
+        "inputs:shadow:enable",
+        "inputs:shadow:color",
+        "inputs:shadow:distance",
+        "inputs:shadow:falloff",
+        "inputs:shadow:falloffGamma",
+        "stb:shadow:update",
+        "stb:mobility",
+        "stb:baked",
+        "stb:range",
+    )
+)
+
 #: Below this many lights the single-light reader is as fast.
 MIN_BULK_LIGHTS = 8
 
@@ -68,10 +102,6 @@ class LightItem:
     names: frozenset[str] | None = None
 
 
-class _Fallback(Exception):
-    """The bulk path cannot read these lights (unexpected data): read them one by one."""
-
-
 class _Columns:
     """Authored input values of a group of lights, one column per input name."""
 
@@ -84,20 +114,34 @@ class _Columns:
         self.n = len(items)
         #: Lights the bulk path hands to ``read_light`` (bad or unusual input).
         self.bad = np.zeros(self.n, dtype=bool)
+        self._values = self._fetch()
 
     def raw(self, name: str) -> tuple[np.ndarray, list[Any]]:
         """(row indices where ``name`` is authored with a value, those values)."""
-        rows: list[int] = []
-        vals: list[Any] = []
+        got = self._values.get(name)
+        if got is None:
+            return np.zeros(0, dtype=np.int64), []
+        return np.asarray(got[0], dtype=np.int64), got[1]
+
+    def _fetch(self) -> dict[str, tuple[list[int], list[Any]]]:
+        """Every authored input in ``_INPUTS``, one pass over the lights (one
+        ``GetAttribute().Get()`` each)."""
+        out: dict[str, tuple[list[int], list[Any]]] = {}
         t = self.time
+        wanted: dict[frozenset[str], tuple[str, ...]] = {}
         for i, (it, nm) in enumerate(zip(self.items, self.names, strict=True)):
-            if name in nm:
-                a = it.prim.GetAttribute(name)
+            prim = it.prim
+            names = wanted.get(nm)
+            if names is None:
+                names = wanted[nm] = tuple(sorted(nm & _INPUTS))
+            for name in names:
+                a = prim.GetAttribute(name)
                 v = a.Get(t) if a else None
                 if v is not None:
+                    rows, vals = out.setdefault(name, ([], []))
                     rows.append(i)
                     vals.append(v)
-        return np.asarray(rows, dtype=np.int64), vals
+        return out
 
     def number(self, name: str, default: float) -> np.ndarray:
         """Float column (``default`` where unauthored); rows with a non-number or a
@@ -128,7 +172,7 @@ class _Columns:
             good = [i for i, k in enumerate(ok) if k]
             if good:
                 try:
-                    arr = np.array([tuple(vals[i]) for i in good], dtype=np.float64)
+                    arr = np.array([vals[i] for i in good], dtype=np.float64).reshape(-1, 3)
                 except (TypeError, ValueError):
                     arr = np.full((len(good), 3), math.nan)
                 out[rows[good]] = arr
@@ -148,7 +192,14 @@ class _Columns:
 
     def has_prefix(self, *prefixes: str) -> np.ndarray:
         """Rows with an authored property name starting with one of ``prefixes``."""
-        return np.array([any(s.startswith(prefixes) for s in nm) for nm in self.names], dtype=bool)
+        seen: dict[frozenset[str], bool] = {}  # lights share a few distinct name sets
+        out = np.zeros(self.n, dtype=bool)
+        for i, nm in enumerate(self.names):
+            v = seen.get(nm)
+            if v is None:
+                v = seen[nm] = any(s.startswith(prefixes) for s in nm)
+            out[i] = v
+        return out
 
 
 def read_lights(
@@ -161,12 +212,16 @@ def read_lights(
     bulk: list[int] = []
     types: list[tuple[str, int]] = []
     names: list[frozenset[str]] = []
+    legacy: dict[frozenset[str], bool] = {}
     for i, it in enumerate(items):
         t = _BULK_TYPES.get(it.prim.GetTypeName()) if it.prim else None
         if t is None:
             continue
         nm = it.names if it.names is not None else frozenset(it.prim.GetAuthoredPropertyNames())
-        if nm & _LEGACY:
+        old = legacy.get(nm)
+        if old is None:
+            old = legacy[nm] = bool(nm & _LEGACY)
+        if old:
             continue
         bulk.append(i)
         types.append(t)
@@ -174,7 +229,7 @@ def read_lights(
     if len(bulk) >= MIN_BULK_LIGHTS:
         try:
             got = _read_group([items[i] for i in bulk], types, names, ctx, time)
-        except _Fallback:
+        except Exception:  # noqa: BLE001 - unexpected data: read_light reads (and warns)
             got = [None] * len(bulk)
         for i, lp in zip(bulk, got, strict=True):
             out[i] = lp
