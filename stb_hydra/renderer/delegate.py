@@ -8,6 +8,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..scene import prims
 from ..scene.locators import DirtyBits
 from ..scene.prims import LightPrim
@@ -91,6 +93,20 @@ class RenderDelegate:
             layer = self.ies.acquire(lp.ies_file, lp.path)
             self._light_ies[lp.path] = lp.ies_file
         self.light_table.write(row, lp, layer)
+
+    def write_lights(self, rows: list[int], lps: list[LightPrim]) -> None:
+        """``write_light`` for many lights at once (one light-table write)."""
+        layers = []
+        for lp in lps:
+            layer = -1
+            old = self._light_ies.pop(lp.path, None)
+            if old is not None and old != lp.ies_file:
+                self.ies.release_user(lp.path)
+            if lp.ies_file:
+                layer = self.ies.acquire(lp.ies_file, lp.path)
+                self._light_ies[lp.path] = lp.ies_file
+            layers.append(layer)
+        self.light_table.write_many(np.asarray(rows, dtype=np.int64), lps, np.asarray(layers))
 
     def release_light(self, path: str) -> None:
         if self._light_ies.pop(path, None) is not None:

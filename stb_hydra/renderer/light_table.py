@@ -232,6 +232,64 @@ class LightTable:
         self.version += 1
         c["version"][row] = self.version
 
+    def write_many(self, rows: np.ndarray, lps: list[LightPrim], ies_layers: np.ndarray) -> None:
+        """``write(rows[i], lps[i], ies_layers[i])`` for every i, column by column (the
+        first sync of many lights: no per-light numpy calls). One version for all."""
+        n = len(lps)
+        if n == 0:
+            return
+        rows = np.asarray(rows, dtype=np.int64)
+        c = self.cols
+
+        def col(name: str) -> list:
+            return [getattr(lp, name) for lp in lps]
+
+        for name in ("position", "direction", "tangent", "intensity", "focus_tint"):
+            c[name][rows] = np.array(col(name), dtype=np.float64).reshape(n, 3)
+        c["shadow_color"][rows] = np.array(col("shadow_color"), dtype=np.float64).reshape(n, 3)
+        local = np.array([lp.type in prims.LOCAL_LIGHT_TYPES for lp in lps], dtype=bool)
+        authored = np.array(col("range_authored"), dtype=bool)
+        peak = np.array(col("peak_intensity"), dtype=np.float64)
+        rng = np.array(col("range"), dtype=np.float64)
+        auto = local & ~authored
+        if auto.any():
+            rng[auto] = influence_range(peak[auto], self.exposure_scale)
+        rng[~np.isfinite(rng)] = 3.0e38
+        c["range"][rows] = rng
+        c["range_authored"][rows] = authored
+        c["peak_intensity"][rows] = peak
+        c["flux"][rows] = col("flux")
+        c["type"][rows] = [TYPE_CODES[t] for t in col("type")]
+        c["emission"][rows] = col("emission")
+        c["enabled"][rows] = col("enabled")
+        has_cone = np.array(col("has_cone"), dtype=bool)
+        cut = np.radians(np.array(col("cone_angle"), dtype=np.float64))
+        start = cut * (1.0 - np.array(col("cone_softness"), dtype=np.float64))
+        c["cone_cutoff"][rows] = np.where(has_cone, cut, NO_CONE_CUTOFF_RAD)
+        c["cone_start"][rows] = np.where(has_cone, start, NO_CONE_CUTOFF_RAD)
+        c["focus"][rows] = col("focus")
+        layers = np.asarray(ies_layers, dtype=np.int32)
+        c["ies_layer"][rows] = layers
+        c["ies_scale"][rows] = np.where(layers >= 0, np.array(col("ies_scale")), 1.0)
+        c["ies_angle_scale"][rows] = col("ies_angle_scale")
+        c["diffuse"][rows] = col("diffuse")
+        c["specular"][rows] = col("specular")
+        c["shadow_enable"][rows] = col("shadow_enable")
+        c["shadow_dynamic"][rows] = [u == prims.SHADOW_DYNAMIC for u in col("shadow_update")]
+        c["static"][rows] = [m == prims.MOBILITY_STATIC for m in col("mobility")]
+        c["baked"][rows] = col("baked")
+        for name in ("shadow_distance", "shadow_falloff", "shadow_falloff_gamma", "radius"):
+            c[name][rows] = col(name)
+        c["angle"][rows] = col("angle")
+        shapes = [area_shape(lp) for lp in lps]
+        c["area_kind"][rows] = [k for k, _, _ in shapes]
+        c["area_size"][rows] = np.array([sz for _, sz, _ in shapes], dtype=np.float64)
+        c["area_radiance"][rows] = [r for _, _, r in shapes]
+        c["light_link_mask"][rows] = col("light_link_mask")
+        c["shadow_link_mask"][rows] = col("shadow_link_mask")
+        self.version += 1
+        c["version"][rows] = self.version
+
     def set_link_masks(self, row: int, masks: LinkMasks) -> None:
         """A light's link masks changed (its collection, or the groups moved)."""
         c = self.cols

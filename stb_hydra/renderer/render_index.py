@@ -12,11 +12,13 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
+from ..scene.lights_bulk import MIN_BULK_LIGHTS
 from ..scene.locators import DirtyBits, dirty_bits_for
 from ..scene.scene_index import AddedPrimEntry, DirtiedPrimEntry, SceneIndex
 from .delegate import RenderDelegate
-from .render_prims import RenderPrim
+from .render_prims import LightSprim, RenderPrim, sync_lights
 
 
 @dataclass
@@ -96,15 +98,29 @@ class RenderIndex:
         c.calls += 1
         c.last = dirty
         order = sorted(dirty, key=lambda p: _SYNC_ORDER.get(self.prims[p].prim_type, 3))
+        batch: dict[type, tuple[list[LightSprim], list[Any], list[DirtyBits]]] = {}
         for path in order:
             rp = self.prims.get(path)
             sp = si.get_prim(path)
             if rp is None or sp is None:
                 continue
             bits = dirty[path]
-            rp.sync(sp.data_source, bits)
+            ds = sp.data_source
+            if isinstance(rp, LightSprim) and rp.needs_full_read(bits) and hasattr(ds, "lights"):
+                b = batch.setdefault(type(ds), ([], [], []))
+                b[0].append(rp)
+                b[1].append(ds)
+                b[2].append(bits)
+            else:
+                rp.sync(ds, bits)
             c.by_type[rp.prim_type] += 1
             c.by_bits[(rp.prim_type, int(bits))] += 1
+        for sprims, sources, bits_list in batch.values():
+            if len(sprims) >= MIN_BULK_LIGHTS:
+                sync_lights(sprims, sources, bits_list)
+            else:
+                for rp, ds, bits in zip(sprims, sources, bits_list, strict=True):
+                    rp.sync(ds, bits)
         c.total += len(dirty)
         return len(dirty)
 

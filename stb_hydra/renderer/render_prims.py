@@ -36,6 +36,8 @@ class PrimHost(Protocol):
 
     def write_light(self, row: int, lp: LightPrim) -> None: ...
 
+    def write_lights(self, rows: list[int], lps: list[LightPrim]) -> None: ...
+
     def release_light(self, path: str) -> None: ...
 
     def release_mesh(self, path: str) -> None: ...
@@ -94,9 +96,26 @@ class LightSprim(RenderPrim):
                 self.delegate.light_table.set_enabled(self.row, lp.enabled)
         self.pending_bits |= bits
 
+    def needs_full_read(self, bits: D) -> bool:
+        """The next ``sync`` re-reads the whole light (what ``sync_lights`` batches)."""
+        return self.light is None or bool(bits & _LIGHT_FULL)
+
     def finalize(self) -> None:
         self.delegate.light_table.free(self.path)
         self.delegate.release_light(self.path)
+
+
+def sync_lights(sprims: list[LightSprim], sources: list[Any], bits: list[D]) -> None:
+    """Full ``sync`` of many lights that share a delegate and a data source type: the
+    records read in bulk (the source type's ``lights``), one light-table write."""
+    if not sprims:
+        return
+    lps = type(sources[0]).lights(sources)
+    for sp, lp, b in zip(sprims, lps, bits, strict=True):
+        sp.valid = lp.valid
+        sp.light = lp
+        sp.pending_bits |= b
+    sprims[0].delegate.write_lights([sp.row for sp in sprims], lps)
 
 
 class MeshRprim(RenderPrim):

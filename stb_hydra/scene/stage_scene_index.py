@@ -19,7 +19,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import defaultdict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +44,7 @@ from .instancing import (
     proxy_paths_for,
 )
 from .lights import LightReadContext, light_type_of, read_light, set_transform
+from .lights_bulk import LightItem, read_lights
 from .links import LinkMasks, LinkResolver
 from .materials import bound_material_path, read_material
 from .scene_index import AddedPrimEntry, DirtiedPrimEntry, SceneIndex, SceneIndexPrim
@@ -135,6 +136,35 @@ class LightDataSource(_DataSource):
         lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
         lp.default_linking = not idx.links.is_linked(e.path)
         return lp
+
+    @staticmethod
+    def lights(sources: Sequence[LightDataSource]) -> list[prims.LightPrim]:
+        """``[ds.light() for ds in sources]`` (same records), read in bulk
+        (``scene/lights_bulk.py``): the first sync of many lights. The sources share
+        one scene index."""
+        if not sources:
+            return []
+        idx = sources[0].index
+        items = [
+            LightItem(
+                ds.entry.prim,
+                ds.entry.path,
+                idx.world_matrix(ds.entry),
+                ds.visible(),
+                ds.entry.names_hint,
+            )
+            for ds in sources
+        ]
+        out = read_lights(items, idx.light_ctx, idx.time)
+        for ds, lp in zip(sources, out, strict=True):
+            e = ds.entry
+            e.vis_hint = None
+            e.names_hint = None
+            lp.instance_id = e.instance_id
+            m = idx.links.light_masks(e.path)
+            lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
+            lp.default_linking = not idx.links.is_linked(e.path)
+        return out
 
     def link_masks(self) -> LinkMasks:
         """The light's masks over the link and shadow groups (``scene/links.py``)."""
