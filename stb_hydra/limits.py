@@ -635,3 +635,7 @@ DOME_SUN_MIN_SHARE = 0.2
 DOME_REFERENCE_SAMPLES = 32
 #: Side (texels) of each of those directional shadow maps.
 DOME_SHADOW_MAP_PX = 512
+#: Spherical-harmonic coefficients of the real-time dome's irradiance: bands 0-2 (SH9,
+#: Ramamoorthi & Hanrahan 2001's irradiance environment map; exact for a map of band
+#: <= 2 such as the half sky). Sizes the u_dome_sh uniform array.
+DOME_SH_COEFFS = 9

@@ -9,7 +9,7 @@
 uniform sampler2D u_dome_map;  // rgb radiance factor, mipmapped, repeat in u (lighting:
                                // without its sun when the sun is lit as the shadowed sun)
 uniform sampler2D u_dome_sky;  // the whole map (what the camera sees)
-uniform vec3 u_dome_sh[9];     // SH9 of E(n) / pi (nits), the light's scale applied
+uniform vec3 u_dome_sh[LIM_DOME_SH_COEFFS];     // SH9 of E(n) / pi (nits), the light's scale applied
 uniform vec4 u_dome_scale;     // rgb nits per map unit, w: the map's last mip level
 uniform vec4 u_dome_mult;      // x diffuse, y specular multiplier, z camera visible, w map width
 

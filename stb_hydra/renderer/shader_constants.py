@@ -190,6 +190,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
         "LIM_DOME_SAMPLES": str(limits.DOME_REFERENCE_SAMPLES),
+        "LIM_DOME_SH_COEFFS": str(limits.DOME_SH_COEFFS),
         "LIM_AREA_SPEC_POINT": f"{limits.AREA_SPEC_POINT:.6f}",
         "LIM_AREA_SPEC_LTC": f"{limits.AREA_SPEC_LTC:.6f}",
         "LIM_GGX_ALPHA_MIN": f"{limits.GGX_ALPHA_MIN:.6f}",
