@@ -355,23 +355,29 @@ def test_missing_and_broken_stages_are_one_line_errors(tmp_path, gl_ctx):
     assert not s.ok and "bad.usda" in s.error and "\n" not in s.error
 
 
+def _stage_camera_pixel(s):
+    """World point -> viewport pixel (x, y) through /Cam's own USD frustum (its 16:9
+    aperture like the viewport's, so its window maps to NDC [-1, 1])."""
+    from pxr import Gf, Usd, UsdGeom
+
+    frustum = UsdGeom.Camera(s.stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode()).frustum
+    to_ndc = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
+
+    def pixel(p):
+        ndc = to_ndc.Transform(Gf.Vec3d(*p))
+        return int((ndc[0] + 1) * 0.5 * W), int((1 - ndc[1]) * 0.5 * H)
+
+    return pixel
+
+
 @pytest.mark.gl
 def test_pick_selects_the_prim_under_the_pixel(scene, gl_ctx):
     """The box's centre and a floor pixel, located with the stage camera's own
     projection (USD's frustum, not the renderer's)."""
-    from pxr import Gf, Usd, UsdGeom
-
     s = _session(scene, gl_ctx, "reference", max_samples=1)
     try:
         _converge(s)
-        # the camera's aperture is 16:9 like the viewport: its window maps to NDC [-1, 1]
-        frustum = UsdGeom.Camera(s.stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode()).frustum
-        to_ndc = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
-
-        def pixel(p):
-            ndc = to_ndc.Transform(Gf.Vec3d(*p))
-            return int((ndc[0] + 1) * 0.5 * W), int((1 - ndc[1]) * 0.5 * H)
-
+        pixel = _stage_camera_pixel(s)
         assert s.pick(*pixel((0.0, 0.6, 0.5))) == "/Box"
         assert s.selected == "/Box"
         assert s.pick(*pixel((-4.0, 0.0, 2.0))) == "/Ground"  # near the left edge
@@ -418,20 +424,12 @@ def SphereLight "Key"
 def test_pick_selects_one_point_instance_not_its_prototype(tmp_path, gl_ctx):
     """Each pawn picks as its own instance path (the scheme lights are synced under),
     the hidden instance is not there to pick, and the selection frames that pawn."""
-    from pxr import Gf, Usd, UsdGeom
-
     p = tmp_path / "pawns.usda"
     p.write_text(INSTANCED_USDA)
     s = _session(p, gl_ctx, "reference", max_samples=1)
     try:
         _converge(s)
-        frustum = UsdGeom.Camera(s.stage.GetPrimAtPath("/Cam")).GetCamera(Usd.TimeCode()).frustum
-        to_ndc = frustum.ComputeViewMatrix() * frustum.ComputeProjectionMatrix()
-
-        def pixel(p):
-            ndc = to_ndc.Transform(Gf.Vec3d(*p))
-            return int((ndc[0] + 1) * 0.5 * W), int((1 - ndc[1]) * 0.5 * H)
-
+        pixel = _stage_camera_pixel(s)
         for i, x in ((0, -3.0), (2, 1.0), (3, 3.0)):
             path = f"/Pawns/__instance_{i}/Pawn/Body"
             assert s.pick(*pixel((x, 0.6, 0.5))) == path

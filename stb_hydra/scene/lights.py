@@ -874,13 +874,8 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
     from . import dome
 
     lp.camera_visible = bool(a.get("visibleInPrimaryRay", True))
-    asset = a.get("inputs:texture:file", None)
-    if asset is None or not getattr(asset, "path", ""):
-        return np.ones(3)
-    resolved = asset.resolvedPath
-    lp.texture_file = resolved or None
+    asset, resolved = _light_texture(lp, a, ctx, "dome", "using a uniform white dome")
     if not resolved:
-        _warn(lp, ctx, f"dome texture '{asset.path}' not found; using a uniform white dome")
         return np.ones(3)
     fmt = str(a.get("inputs:texture:format", "automatic"))
     if fmt not in dome.FORMATS:
@@ -904,19 +899,30 @@ def _dome_texture_average(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np
     return np.asarray(lp.dome_map.mean, dtype=np.float64)
 
 
+def _light_texture(
+    lp: LightPrim, a: _Attrs, ctx: LightReadContext, what: str, fallback: str
+) -> tuple[Any, str]:
+    """(asset, resolved path) of a light's ``inputs:texture:file`` ("" when none is
+    authored or it does not resolve: the latter warns, naming ``what`` and ``fallback``);
+    records the resolved path on ``lp.texture_file``."""
+    asset = a.get("inputs:texture:file", None)
+    if asset is None or not getattr(asset, "path", ""):
+        return asset, ""
+    resolved = str(asset.resolvedPath or "")
+    lp.texture_file = resolved or None
+    if not resolved:
+        _warn(lp, ctx, f"{what} texture '{asset.path}' not found; {fallback}")
+    return asset, resolved
+
+
 def _rect_texture_mean(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
     """Mean RGB of a RectLight's ``inputs:texture:file`` (decoded like material
     textures): the rect is shaded as a uniform emitter of that colour and power (1
     without a usable texture; a missing or unreadable one warns)."""
     from . import dome
 
-    asset = a.get("inputs:texture:file", None)
-    if asset is None or not getattr(asset, "path", ""):
-        return np.ones(3)
-    resolved = asset.resolvedPath
-    lp.texture_file = resolved or None
+    asset, resolved = _light_texture(lp, a, ctx, "rect", "emitting uniform white")
     if not resolved:
-        _warn(lp, ctx, f"rect texture '{asset.path}' not found; emitting uniform white")
         return np.ones(3)
     try:
         return dome.texture_mean(resolved)

@@ -129,13 +129,19 @@ class LightDataSource(_DataSource):
             path=e.path,
             names=e.names_hint,
         )
+        self._finish(lp)
+        return lp
+
+    def _finish(self, lp: prims.LightPrim) -> None:
+        """What the scene index adds to a read light: its instance id and link masks
+        (the entry's read hints are spent)."""
+        e, idx = self.entry, self.index
         e.vis_hint = None
         e.names_hint = None
         lp.instance_id = e.instance_id
         m = idx.links.light_masks(e.path)
         lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
         lp.default_linking = not idx.links.is_linked(e.path)
-        return lp
 
     @staticmethod
     def lights(sources: Sequence[LightDataSource]) -> list[prims.LightPrim]:
@@ -157,13 +163,7 @@ class LightDataSource(_DataSource):
         ]
         out = read_lights(items, idx.light_ctx, idx.time)
         for ds, lp in zip(sources, out, strict=True):
-            e = ds.entry
-            e.vis_hint = None
-            e.names_hint = None
-            lp.instance_id = e.instance_id
-            m = idx.links.light_masks(e.path)
-            lp.light_link_mask, lp.shadow_link_mask = m.light, m.shadow
-            lp.default_linking = not idx.links.is_linked(e.path)
+            ds._finish(lp)
         return out
 
     def link_masks(self) -> LinkMasks:
