@@ -17,7 +17,7 @@ from ..scene.locators import DirtyBits as D
 
 if TYPE_CHECKING:
     from ..scene.prims import LightPrim
-    from ..scene.stage_scene_index import (
+    from ..scene.stage_data_sources import (
         CameraDataSource,
         LightDataSource,
         MaterialDataSource,
