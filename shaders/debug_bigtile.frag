@@ -5,23 +5,13 @@
 // dimmed, big-tile borders black. Reads the r32ui stb_bigtile texture.
 #include "common/frame.glsl"
 #include "common/packing.glsl"
+#include "common/debug_colors.glsl"
 
 uniform usampler2D u_bigtile;   // r32ui reservoirs, u_block texels per big tile
 uniform ivec2 u_block;          // slot block (columns, rows) per big tile
 uniform int u_big_px;           // big tile size (px)
 
 layout(location = 0) out vec4 o_color;
-
-// Hash colour of a light index (numpy twin: render/tasks/aov_output.hash_colors).
-vec3 light_color(uint i) {
-    uint h = i * 747796405u + 2891336453u;
-    h = ((h >> ((h >> 28u) + 4u)) ^ h) * 277803737u;
-    h = (h >> 22u) ^ h;
-    float hue = float(h & 1023u) / 1024.0;
-    vec3 c = clamp(abs(fract(hue + vec3(0.0, 2.0 / 3.0, 1.0 / 3.0)) * 6.0 - 3.0) - 1.0, 0.0, 1.0);
-    float v = 0.55 + 0.45 * float((h >> 10u) & 255u) / 255.0;
-    return mix(vec3(1.0), c, 0.85) * v;
-}
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);

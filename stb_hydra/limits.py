@@ -403,6 +403,10 @@ STB_RIS_PDF_FLOOR = 0.25
 #: the previous reservoir is clamped to this before it is combined): bounds how long
 #: the history can outvote a changed light (ReSTIR's usual 20).
 STB_REUSE_M_CAP = 20.0
+#: Top of the ``reuse_m`` debug view's log2 scale of a reservoir's confidence M (the
+#: stored M after spatial reuse reaches (k + 1) x (1 + STB_REUSE_M_CAP) = 105 at the
+#: defaults; larger M saturates).
+STB_REUSE_DEBUG_M_MAX = 128.0
 #: Spatial neighbours per pixel (``-o reuse_k``), at most (shader arrays are sized by it).
 STB_REUSE_K_MAX = 8
 #: Spatial reuse radius (px) by default (``-o reuse_radius``): about one interleaved

@@ -21,9 +21,14 @@ from stb_hydra.io.debug_views import (
 from stb_hydra.io.images import read_image
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
-from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples
+from stb_hydra.renderer.lighting.stb import REUSE_DEBUG_AOVS, SLOT_BLOCKS, decode_samples
 from stb_hydra.renderer.records import InViewLights
 from stb_hydra.renderer.tasks.aov_output import DEBUG_AOVS, STB_DEBUG_AOVS, check_debug_aovs
+
+#: The views of an STB engine without ``-o reuse=on`` (the reuse views:
+#: tests/test_reuse_debug_views.py).
+PLAIN_VIEWS = tuple(a for a in DEBUG_AOVS if a not in REUSE_DEBUG_AOVS)
+PLAIN_STB_VIEWS = tuple(a for a in STB_DEBUG_AOVS if a not in REUSE_DEBUG_AOVS)
 
 pytestmark = pytest.mark.gl
 
@@ -65,7 +70,7 @@ def render(stage, lighting: str, aovs, **opts):
 def stb_run(gl_ctx, stage):
     eng = None
     try:
-        res, frame, eng = render(stage, "stb", [*DEBUG_AOVS, "depth"])
+        res, frame, eng = render(stage, "stb", [*PLAIN_VIEWS, "depth"])
         tex = {k: _read_raw(frame, k) for k in ("stb_bigtile", "stb_smalltile", "stb_terms")}
         yield res, frame, eng, tex
     finally:
@@ -102,7 +107,7 @@ def world_positions(depth: np.ndarray, view) -> np.ndarray:
 
 def test_every_debug_aov_has_the_image_size_and_is_finite(stb_run):
     res, _frame, _eng, _tex = stb_run
-    for name in DEBUG_AOVS:
+    for name in PLAIN_VIEWS:
         a = res[name]
         assert a.shape[:2] == (H, W), name
         assert np.all(np.isfinite(a)), name
@@ -187,8 +192,8 @@ def test_shadowterm_values_come_from_the_term_texture(stb_run):
 def test_views_for_other_stb_layouts(gl_ctx, stage, opts):
     eng = None
     try:
-        res, _frame, eng = render(stage, "stb", STB_DEBUG_AOVS, **opts)
-        for name in STB_DEBUG_AOVS:
+        res, _frame, eng = render(stage, "stb", PLAIN_STB_VIEWS, **opts)
+        for name in PLAIN_STB_VIEWS:
             a = res[name]
             assert a.shape == (H, W, 3) and np.all(np.isfinite(a)), name
             assert a.max() > 0.05, f"{name} is black"
@@ -278,14 +283,14 @@ def test_cli_writes_debug_aovs_beside_the_image(tmp_path):
             "--lighting",
             "stb",
             "--aov",
-            ",".join(DEBUG_AOVS),
+            ",".join(PLAIN_VIEWS),
         ],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert r.returncode == 0, r.stderr
-    for name in DEBUG_AOVS:
+    for name in PLAIN_VIEWS:
         png, meta = read_image(tmp_path / f"img.{name}.png")
         # the view, then its colour scale (io.debug_views.legend_strip)
         assert png.shape[:2] == (54 + LEGEND_ROWS, 96), name

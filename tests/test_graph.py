@@ -260,6 +260,13 @@ def test_options_are_coerced_from_cli_text():
     assert o["N"] == 4 and o["interleave"] is False and o["weight_cap"] == 0.0
     assert validate_options("tiled", {"tile_cap": 0})["tile_cap"] is None
     assert validate_options("clustered", {})["cap"] is None
+    # The CLI's parse_value turns on/off into booleans; a text option with on/off
+    # choices takes the words back (`-o reuse_temporal=on` failed with "expected text").
+    from stb_hydra.apps.common import parse_options
+
+    for word in ("on", "off", "auto"):
+        cli = parse_options(f"reuse_temporal={word}", "-o")
+        assert validate_options("stb", cli)["reuse_temporal"] == word
 
 
 def test_every_method_declares_a_documented_schema():

@@ -198,7 +198,10 @@ def _run(args: argparse.Namespace, rep: Reporter) -> int:
             rep.say(f"stb render: {eng.renderer_info}")
         ext = os.path.splitext(args.output)[1].lower()
         want = set(aovs) | ({"display"} if ext in (".png", ".jpg", ".jpeg") else set())
-        eng.request_aovs(want)
+        try:
+            eng.request_aovs(want)
+        except ValueError as exc:  # a view the method draws only under other options
+            raise CliError(str(exc)) from None
     except BaseException:
         eng.release()
         raise

@@ -38,6 +38,38 @@ def hash_colors(index: np.ndarray) -> np.ndarray:
     return ((1.0 - 0.85) + 0.85 * c) * v[..., None]
 
 
+#: Colour stops of the debug views' heat ramp (twin of ``heat_ramp()`` in
+#: ``shaders/common/debug_colors.glsl``): blue, cyan, green, yellow, red.
+_HEAT_STOPS = np.array(
+    [[0.1, 0.2, 1.0], [0.0, 0.85, 1.0], [0.1, 0.9, 0.2], [1.0, 0.9, 0.0], [1.0, 0.15, 0.1]],
+    dtype=np.float32,
+)
+#: Colours of the ``reuse_reject`` view: history combined, rejected, none this frame.
+REUSE_REJECT_COLORS = {
+    "taken": (0.1, 0.85, 0.2),
+    "rejected": (1.0, 0.1, 0.1),
+    "none": (0.15, 0.3, 1.0),
+}
+
+
+def heat_ramp(t: np.ndarray) -> np.ndarray:
+    """(...,) positions in [0, 1] -> (..., 3) colours of the heat ramp."""
+    x = np.clip(np.asarray(t, dtype=np.float32), 0.0, 1.0) * 4.0
+    i = np.minimum(x.astype(np.intp), 3)
+    f = (x - i)[..., None]
+    return _HEAT_STOPS[i] * (1.0 - f) + _HEAT_STOPS[i + 1] * f
+
+
+def reuse_m_colors(m: np.ndarray) -> np.ndarray:
+    """(...,) reservoir confidences M -> (..., 3) colours of the ``reuse_m`` view (log2
+    scale from 1 to ``limits.STB_REUSE_DEBUG_M_MAX``; black where M = 0)."""
+    from .. import limits
+
+    m = np.asarray(m, dtype=np.float64)
+    t = np.log2(np.maximum(m, 1.0)) / np.log2(limits.STB_REUSE_DEBUG_M_MAX)
+    return np.where((m > 0.0)[..., None], heat_ramp(t), 0.0).astype(np.float32)
+
+
 @functools.cache
 def _turbo_lut() -> np.ndarray:
     import matplotlib
@@ -115,6 +147,21 @@ def _legend_spec(name: str) -> tuple[np.ndarray, str, str, str]:
             [np.zeros((16, 3), np.float32), np.repeat(hash_colors(np.arange(15)), 16, axis=0)]
         )
         return c, "empty", "light hash", "colour = hash of the light index"
+    if name == "reuse_m":
+        from .. import limits
+
+        m = np.concatenate([[0.0] * 16, np.exp2(np.linspace(0.0, 7.0, 240))])
+        top = int(limits.STB_REUSE_DEBUG_M_MAX)
+        return reuse_m_colors(m), "0 | 1", f">={top}", "reservoir confidence M, log2"
+    if name == "reuse_light":
+        c = np.concatenate(
+            [np.zeros((16, 3), np.float32), np.repeat(hash_colors(np.arange(15)), 16, axis=0)]
+        )
+        return c, "empty", "light hash", "colour = hash of the reservoir's light"
+    if name == "reuse_reject":
+        rgb = np.array(list(REUSE_REJECT_COLORS.values()), np.float32)
+        c = np.repeat(rgb, 85, axis=0)
+        return c, "taken", "none", "green taken / red rejected / blue no history"
     g = np.linspace(0.0, 1.0, 256, dtype=np.float32)
     return np.repeat(g[:, None], 3, 1), "0", "1", name
 

@@ -318,6 +318,8 @@ class PreviewSession(LiveReload, Navigation, StageContents, DisplayControls):
         except (OptionError, ValueError, KeyError) as exc:
             self.message = _one_line(exc)
             return False
+        if self.view in DEBUG_AOVS and self.view not in (*e.method.debug_aovs, "lightcount"):
+            self.set_view("color")  # e.g. a reuse view after -o reuse=off
         self.message = None
         self._scene_dirty = True
         return True

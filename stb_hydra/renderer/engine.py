@@ -44,7 +44,7 @@ from .fullscreen import release_fullscreen
 from .gl import get_context, park, shader_library
 from .gl_delegate import GLRenderDelegate
 from .graph import FORMATS, CompiledGraph, Rec, Tex, compile_graph
-from .lighting import method_class
+from .lighting import debug_aov_names, method_class
 from .lighting.base import LightingMethod
 from .passes import IMPORTS, PassSet, build_passes
 from .render_index import RenderIndex
@@ -153,6 +153,11 @@ class Engine:
         """Switch the lighting method (and its options) on a live engine; the scene,
         the shadow atlas and the render buffers are kept."""
         method = self._make_method(name, options)  # validates before anything changes
+        # Debug views the new method does not draw are no longer asked for.
+        methods_views = set(debug_aov_names())
+        self._requested_aovs = {
+            a for a in self._requested_aovs if a not in methods_views or a in method.debug_aovs
+        }
         old = self._set
         for p in old.passes:
             if p not in (old.shadow_atlas, old.frame_uniforms, old.lightmap):

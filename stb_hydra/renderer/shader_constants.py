@@ -183,6 +183,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_RIS_PDF_FLOOR": f"{limits.STB_RIS_PDF_FLOOR:.6f}",
         "LIM_REUSE_K_MAX": str(limits.STB_REUSE_K_MAX),
         "LIM_REUSE_MAX_CHANGES": str(limits.STB_REUSE_MAX_CHANGES),
+        "LIM_REUSE_DEBUG_M_MAX": f"{limits.STB_REUSE_DEBUG_M_MAX:.1f}",
         "LIM_REUSE_DEPTH_REL": f"{limits.STB_REUSE_DEPTH_REL:.6f}",
         "LIM_REUSE_NORMAL_COS": f"{limits.STB_REUSE_NORMAL_COS:.6f}",
         "LIM_REUSE_ROUGHNESS_DIFF": f"{limits.STB_REUSE_ROUGHNESS_DIFF:.6f}",

@@ -81,8 +81,12 @@ class LightingMethod:
     name: ClassVar[str] = "base"
     #: Class-level option schema (``-o KEY=VALUE``).
     options: ClassVar[Schema] = Schema()
-    #: Debug AOVs this method draws (names in ``tasks/aov_output.AOVS``).
-    debug_aovs: ClassVar[tuple[str, ...]] = ()
+    #: Debug AOVs this method draws (names in ``tasks/aov_output.AOVS``); an instance
+    #: may offer fewer (views that need an option it was made without).
+    debug_aovs: tuple[str, ...] = ()
+    #: Debug AOVs drawn only under some options: AOV -> the options it needs (said in
+    #: the error when an instance without them is asked for one).
+    debug_aov_requires: ClassVar[dict[str, str]] = {}
     #: True when the method evaluates local lights (culling, light buffer, atlas).
     uses_local_lights: ClassVar[bool] = True
     #: Min/max depth pyramid level the method samples (0: none); may depend on options.

@@ -106,6 +106,11 @@ class Opt:
                 raise OptionError(f"{where}: expected a finite number, got {value!r}")
             return v
         if t is str:
+            if isinstance(value, bool):
+                # The CLI reads on/off, true/false, yes/no as booleans; a text option
+                # whose choices are such words takes the word back (-o reuse_temporal=on).
+                words = _TRUE[1:] if value else _FALSE[1:]
+                return next((c for c in self.choices or () if c in words), str(value).lower())
             if isinstance(value, str):
                 return value.strip()
             raise OptionError(f"{where}: expected text, got {value!r}")

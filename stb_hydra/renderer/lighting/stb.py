@@ -216,6 +216,9 @@ OPTIONS = Schema(
 SELECT_DEFINES = {"quad": "STB_QUAD_SELECT", "pixel": "STB_PIXEL_SELECT", "ris": "STB_RIS_SELECT"}
 #: Debug views (``shaders/debug_<name>.frag``).
 DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
+#: Debug views of the reservoir reuse (``-o reuse=on`` only): the stored reservoir's
+#: confidence M, its light, and what the temporal reuse did (taken / rejected / none).
+REUSE_DEBUG_AOVS = ("reuse_m", "reuse_light", "reuse_reject")
 #: Textures a debug view samples (uniform -> render buffer).
 DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_terms": "stb_terms"}
 
@@ -223,7 +226,8 @@ DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_t
 class StbLighting(LightingMethod):
     name = "stb"
     options = OPTIONS
-    debug_aovs = DEBUG_AOVS
+    debug_aovs: tuple[str, ...] = DEBUG_AOVS + REUSE_DEBUG_AOVS
+    debug_aov_requires = dict.fromkeys(REUSE_DEBUG_AOVS, "-o reuse=on")
 
     @classmethod
     def check_options(cls, o: dict) -> None:
@@ -248,6 +252,8 @@ class StbLighting(LightingMethod):
         self._cluster_buffers: SSBOPool | None = None
         #: Reservoir reuse (``-o reuse=on``) and its history.
         self.reuse = ReuseStage()
+        #: The views this instance draws (the reuse views need its reservoirs).
+        self.debug_aovs = DEBUG_AOVS + (REUSE_DEBUG_AOVS if self.o["reuse"] else ())
 
     def internal(self) -> tuple[Tex, ...]:
         reuse = reuse_textures() if self.o["reuse"] else ()
@@ -265,7 +271,7 @@ class StbLighting(LightingMethod):
         return (*super().reads(), *extra)
 
     def debug_passes(self) -> list[Pass]:
-        return [StbDebugPass(self, aov) for aov in DEBUG_AOVS]
+        return [StbDebugPass(self, aov) for aov in self.debug_aovs]
 
     # -- resources --
     def patterns(self) -> QuadPatterns:
@@ -543,8 +549,10 @@ class StbDebugPass(Pass):
         self.name = f"debug_{aov}"  # type: ignore[misc]
 
     def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
+        inputs = reuse_textures()[:3] if self.aov in REUSE_DEBUG_AOVS else ()
         reads: tuple[Resource, ...] = (
             *(Tex(n) for n in DEBUG_INPUTS.values()),
+            *(Tex(t.name) for t in inputs),
             Rec(InViewLights),
             Rec(DistantLights),
             Rec(LightBuffer),
@@ -567,7 +575,12 @@ class StbDebugPass(Pass):
         for uniform, name in DEBUG_INPUTS.items():
             unit = m._bind(frame, prog, unit, uniform, tex[name])
         unit = m._bind(frame, prog, unit, "u_quad_lut", lut_inv)
-        m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        unit = m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
+        if self.aov in REUSE_DEBUG_AOVS:
+            cur, newest = m.reuse.debug_inputs()
+            unit = m._bind(frame, prog, unit, "u_reuse_cur", tex[cur])
+            m._bind(frame, prog, unit, "u_reuse_res", tex[newest])
+            set_uniform(prog, "u_history", 1 if m.reuse.last_history else 0)
         draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
 
 

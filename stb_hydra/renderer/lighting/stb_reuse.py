@@ -140,6 +140,8 @@ class ReuseStage:
         self._light_version = -1
         #: Why the history was dropped on the last frame ("" = kept).
         self.last_reset = ""
+        #: Did the last frame's temporal pass have a history to reuse?
+        self.last_history = False
 
     def reset(self) -> None:
         """Forget the history (the next frame starts from its own candidates)."""
@@ -219,6 +221,7 @@ class ReuseStage:
         self.last_reset = reason
         frame.stats["stb_reuse_reset"] = reason
         history = 0 if reason or not temporal_reuse(o["reuse_temporal"], frame) else 1
+        self.last_history = bool(history)
         src, dst = self._parity, 1 - self._parity
         cur = bufs.texture(CURRENT, 4, "u4")
         h_src = bufs.texture(HISTORY[src], 4, "u4")
@@ -275,6 +278,11 @@ class ReuseStage:
         self._n_rows = n_rows
         self.count = 1 if reason else self.count + 1
         self._parity = dst
+
+    def debug_inputs(self) -> tuple[str, str]:
+        """Render buffers of the last frame the debug views read: its reservoirs after
+        temporal reuse, and the reservoirs it stored (after spatial reuse)."""
+        return CURRENT, HISTORY[self._parity]
 
     def release(self) -> None:
         if self._remap is not None:

@@ -82,6 +82,10 @@ def check_debug_aovs(names: Iterable[str], lighting: str, method: Any = None) ->
         method = method_class(lighting)
     offered = set(getattr(method, "debug_aovs", ()))
     missing = [n for n in names if n in debug_aov_names() and n not in offered]
+    requires = getattr(method, "debug_aov_requires", {})
+    if missing and all(n in requires for n in missing):
+        need = ", ".join(dict.fromkeys(requires[n] for n in missing))
+        raise ValueError(f"AOV(s) {','.join(missing)} need {need} (--lighting {lighting})")
     if missing:
         owners = [m for m, cls in METHODS.items() if set(missing) <= set(cls.debug_aovs)]
         need = " or ".join(f"--lighting {m}" for m in owners) or "another method"
