@@ -22,6 +22,11 @@ STB_N = (1, 2, 4)
 STB_K = (4, 8, 16, 32, 64)
 ACCUMULATE = (1, 4, 16)
 STB_CAP = 8.0
+#: STB with reservoir reuse (issue 31): N = 4 candidates per pixel, the weight cap on, at
+#: every K of the grid (quick: the largest). The temporal reuse is off as under
+#: ``--accumulate`` (``reuse_temporal=auto``): the grid's accumulations average
+#: independent frames.
+STB_REUSE = {"N": 4, "reuse": True, "reuse_temporal": "off"}
 TILE_CAPS = (16, 64, None)
 QUICK = {"N": (1, 4), "K": (8, 32), "A": (1, 4), "tile_caps": (16, None)}
 
@@ -39,7 +44,8 @@ class Unit:
         if self.method == "stb":
             o = self.options
             cap = "cap" if o.get("weight_cap") else "nocap"
-            return f"stb N{o['N']} K{o['K']} {cap} A{a}"
+            reuse = " reuse" if o.get("reuse") else ""
+            return f"stb N{o['N']} K{o['K']} {cap}{reuse} A{a}"
         if self.method == "tiled":
             c = self.options.get("tile_cap")
             return f"tiled cap {c if c else 'none'}"
@@ -56,6 +62,9 @@ def grid_units(
         for k in ks:
             for wc in (STB_CAP, None):
                 units.append(Unit("stb", {"N": n, "K": k, "weight_cap": wc}, tuple(accs), True))
+    for k in ks[-1:] if quick else ks:
+        opts = {**STB_REUSE, "K": k, "weight_cap": STB_CAP}
+        units.append(Unit("stb", opts, tuple(accs), True))
     units += [Unit("tiled", {"tile_cap": c}) for c in caps]
     units += [Unit("clustered"), Unit("lighttree")]
     if methods:
@@ -220,6 +229,7 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
         "N": u.options.get("N", ""),
         "K": u.options.get("K", ""),
         "weight_cap": (u.options.get("weight_cap") or 0) if u.method == "stb" else "",
+        "reuse": int(bool(u.options.get("reuse"))) if u.method == "stb" else "",
         "tile_cap": (u.options.get("tile_cap") or "none") if u.method == "tiled" else "",
         "frame_ms": round(frame_ms, 3),
         "frame_ms_min": round(min(run.times), 3),

@@ -10,10 +10,11 @@ the median per-frame HDR-FLIP against the per-frame reference (mid grey), the me
 relMSE, and temporal instability over the reference's own
 (:func:`stb_hydra.metrics.instability_ratio`: 1 = as stable as the reference).
 
-Configurations: ``reference``; ``stb`` N = 1 and 4, each with ``temporal`` off (raw
-frames: what still-camera accumulation shows while the camera moves, since every new
-camera position restarts the average) and ``taa``; ``tiled``, ``clustered`` and
-``lighttree``. Writes ``moving.csv`` and
+Configurations: ``reference``; ``stb`` N = 1 and 4, N = 4 with ``select=ris`` and N = 4
+with reservoir reuse (``-o reuse=on``: its temporal reuse follows the camera through the
+motion vectors), each with ``temporal`` off (raw frames: what still-camera accumulation
+shows while the camera moves, since every new camera position restarts the average) and
+``taa``; ``tiled``, ``clustered`` and ``lighttree``. Writes ``moving.csv`` and
 ``moving.md`` (atomically).
 """
 
@@ -36,6 +37,8 @@ MOVING_CONFIGS: tuple[tuple[str, str, dict], ...] = (
     ("stb", "taa", {"N": 4}),
     ("stb", "off", {"N": 4, "select": "ris"}),
     ("stb", "taa", {"N": 4, "select": "ris"}),
+    ("stb", "off", {"N": 4, "reuse": True}),
+    ("stb", "taa", {"N": 4, "reuse": True}),
     ("tiled", "off", {}),
     ("clustered", "off", {}),
     ("lighttree", "off", {}),
@@ -47,6 +50,7 @@ MOVING_FIELDS = [
     "temporal",
     "N",
     "select",
+    "reuse",
     "frame_ms",
     "temporal_ms",
     "hdr_flip_median",
@@ -77,7 +81,8 @@ class Sequence:
             return self.method
         select = self.options.get("select", "all")
         sel = "" if select == "all" else f" {select}"
-        return f"stb N{self.options.get('N', 1)}{sel} {self.temporal}"
+        reuse = " reuse" if self.options.get("reuse") else ""
+        return f"stb N{self.options.get('N', 1)}{sel}{reuse} {self.temporal}"
 
 
 def render_sequence(
@@ -144,6 +149,7 @@ def evaluate_sequence(seq: Sequence, ref: Sequence, skip: int) -> dict:
         "temporal": seq.temporal,
         "N": seq.options.get("N", ""),
         "select": seq.options.get("select", "all") if seq.method == "stb" else "",
+        "reuse": int(bool(seq.options.get("reuse"))) if seq.method == "stb" else "",
         "frame_ms": round(float(np.median(seq.times[sl])), 3),
         "temporal_ms": round(float(np.median(seq.temporal_times[sl])), 3),
         "hdr_flip_median": round(float(np.median(flips)), 5),
@@ -228,7 +234,7 @@ def write_moving(rows: list[dict], out: Path) -> None:
         return
     r0 = rows[0]
     raw = {
-        (r["N"], r["select"]): r["hdr_flip_median"]
+        (r["N"], r["select"], r["reuse"]): r["hdr_flip_median"]
         for r in rows
         if r["temporal"] == "off" and r["N"]
     }
@@ -245,7 +251,7 @@ def write_moving(rows: list[dict], out: Path) -> None:
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        base = raw.get((r["N"], r["select"])) if r["method"] == "stb" else None
+        base = raw.get((r["N"], r["select"], r["reuse"])) if r["method"] == "stb" else None
         vs = f"{r['hdr_flip_median'] / base:.2f}x" if base else ""
         lines.append(
             f"| {r['label']} | {r['frame_ms']:.1f} | {r['temporal_ms']:.2f} |"
