@@ -639,6 +639,12 @@ DOME_SUN_MIN_SHARE = 0.2
 DOME_REFERENCE_SAMPLES = 32
 #: Side (texels) of each of those directional shadow maps.
 DOME_SHADOW_MAP_PX = 512
+#: Sky occlusion of the real-time methods (``renderer/dome_shadows.py``): fixed
+#: directions drawn from the dome (its sun left out when the sun is split off), each
+#: with a directional shadow map re-drawn only when the scene's geometry or the dome
+#: changes; the visibility they give, weighted by the dome's light in each direction,
+#: scales the prefiltered sky light. At most DOME_REFERENCE_SAMPLES (shared uniforms).
+DOME_OCCLUSION_SAMPLES = 8
 #: Spherical-harmonic coefficients of the real-time dome's irradiance: bands 0-2 (SH9,
 #: Ramamoorthi & Hanrahan 2001's irradiance environment map; exact for a map of band
 #: <= 2 such as the half sky). Sizes the u_dome_sh uniform array.

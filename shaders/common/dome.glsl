@@ -47,13 +47,15 @@ float dome_lod(float roughness) {
     return clamp(log2(alpha * u_dome_mult.w / PI), 0.0, u_dome_scale.w);
 }
 
-// Reflected radiance (nits) of the textured dome, unshadowed apart from `occlusion`
-// (the material's): diffuse from SH9, specular by the split sum.
-vec3 dome_light(Surface s, float occlusion) {
+// Reflected radiance (nits) of the textured dome: diffuse from SH9, specular by the
+// split sum, times `occlusion` (the material's) and the share `vis` (diffuse,
+// specular) of the sky that reaches the point (common/dome_occlusion.glsl; vec2(1):
+// unshadowed).
+vec3 dome_light(Surface s, float occlusion, vec2 vis) {
     float NoV = max(dot(s.N, s.V), 1e-4);
     vec3 diff = s.diffuse * dome_irradiance(s.N);
     vec3 R = reflect(-s.V, s.N);
     vec3 spec = env_brdf_approx(s.f0, s.roughness, NoV) * dome_radiance(R, dome_lod(s.roughness));
-    return (diff * u_dome_mult.x + spec * u_dome_mult.y) * occlusion;
+    return (diff * (u_dome_mult.x * vis.x) + spec * (u_dome_mult.y * vis.y)) * occlusion;
 }
 #endif

@@ -7,6 +7,15 @@
 #ifdef HAS_DOME_MAP
 #include "common/dome.glsl"
 #endif
+#if defined(DOME_OCCLUSION) || defined(DOME_SAMPLED)
+// The dome's shadow-map atlas (the reference's samples or the sky occlusion's fixed
+// directions). Here, before any other include of it: each file is expanded once, at its
+// first #include, whatever the #if around it.
+#include "common/dome_sampled.glsl"
+#endif
+#ifdef DOME_OCCLUSION
+#include "common/dome_occlusion.glsl"
+#endif
 
 #ifdef HAS_SUN_SHADOW
 uniform sampler2DShadow u_sun_shadow;
@@ -73,7 +82,11 @@ vec3 sun_and_ambient(Surface s) {
 #if defined(HAS_DOME_MAP) && !defined(HAS_LINKS) && !defined(DOME_SAMPLED)
     // The textured dome (common/dome.glsl); under light linking each group's ambient
     // holds the domes' means (link_ambient); the reference samples it (DOME_SAMPLED).
-    c += dome_light(s, s.occlusion);
+#ifdef DOME_OCCLUSION
+    c += dome_light(s, s.occlusion, dome_sky_visibility(s));
+#else
+    c += dome_light(s, s.occlusion, vec2(1.0));
+#endif
 #endif
     return c;
 }

@@ -1,11 +1,17 @@
-"""Directional shadow maps of the reference's dome samples (issue 37).
+"""Directional shadow maps of a textured dome (issue 37).
 
 The reference method lights a textured dome by importance sampling it
 (``scene.dome.DomeSampler``): each frame draws ``limits.DOME_REFERENCE_SAMPLES``
 directions and gives each an orthographic depth map fitted to the scene bounds, tiled
 into one depth atlas (``shaders/common/dome_sampled.glsl`` reads it). The frames of an
 accumulation draw fresh directions, so ``--accumulate`` converges to the dome's
-shadowed light. Render frame, metres.
+shadowed light.
+
+The real-time methods' sky occlusion (:class:`SkyOcclusion`) uses the same maps for
+``limits.DOME_OCCLUSION_SAMPLES`` fixed directions (the dome without its split-off sun),
+drawn again only when the scene's draw batches or the dome change; the shader
+(``shaders/common/dome_occlusion.glsl``) turns them into the share of the prefiltered
+sky light that reaches a point. Render frame, metres.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ import numpy as np
 
 from .. import limits
 from ..scene.dome import DomeSampler
-from ..scene.prims import DomeMap, LightPrim
+from ..scene.prims import LightPrim
 from .camera import look_at, orthographic
 from .depth_draw import DepthDraw
 from .gl import set_uniform
@@ -44,26 +50,31 @@ class DomeSamples:
 class DomeShadowMaps:
     """Owns the depth atlas and the sampling table of the current dome map."""
 
-    def __init__(self, ctx: moderngl.Context) -> None:
+    def __init__(self, ctx: moderngl.Context, count: int = limits.DOME_REFERENCE_SAMPLES) -> None:
         self.ctx = ctx
         self.atlas: moderngl.Texture | None = None
         self.fbo: moderngl.Framebuffer | None = None
         self._sampler: DomeSampler | None = None
-        self._map: DomeMap | None = None
-        n = limits.DOME_REFERENCE_SAMPLES
-        self.cols = math.ceil(math.sqrt(n))
-        self.rows = math.ceil(n / self.cols)
+        self._image: np.ndarray | None = None
+        self.count = count
+        self.cols = math.ceil(math.sqrt(count))
+        self.rows = math.ceil(count / self.cols)
 
-    def draw_samples(self, lp: LightPrim, seed: int, sample_index: int) -> DomeSamples | None:
-        """This frame's directions for dome ``lp`` (None without a map)."""
+    def draw_samples(
+        self, lp: LightPrim, seed: int, sample_index: int, without_sun: bool = False
+    ) -> DomeSamples | None:
+        """Directions for dome ``lp`` (None without a map): a fresh stratified set per
+        (seed, sample_index). ``without_sun``: drawn from the map without its split-off
+        sun (``DomeMap.rest``; the whole map when it has none)."""
         dm = lp.dome_map
         if dm is None:
             return None
-        if dm is not self._map:
-            self._sampler = DomeSampler(dm.latlong)
-            self._map = dm
+        img = dm.rest if without_sun and dm.rest is not None else dm.latlong
+        if img is not self._image:
+            self._sampler = DomeSampler(img)
+            self._image = img
         assert self._sampler is not None
-        n = limits.DOME_REFERENCE_SAMPLES
+        n = self.count
         rng = np.random.default_rng([seed & 0xFFFFFFFF, sample_index])
         # A Fibonacci lattice over (row, column) with a random toroidal shift: n points
         # stratified in both CDF dimensions; fresh shift and texel offsets per frame.
@@ -118,11 +129,17 @@ class DomeShadowMaps:
         self.atlas.use(unit)
         set_uniform(prog, "u_dome_shadow", unit)
         n = len(samples.directions)
-        set_uniform(prog, "u_dome_vp", samples.view_proj.astype(np.float32))
+        pad = limits.DOME_REFERENCE_SAMPLES - n  # the uniform arrays' size (LIM_DOME_SAMPLES)
+        vp = np.concatenate([samples.view_proj, np.zeros((pad, 4, 4))])
         dirs = np.c_[samples.directions, samples.bias[:, 0]]
         illum = np.c_[samples.illuminance, samples.bias[:, 1]]
-        set_uniform(prog, "u_dome_dir", dirs.astype(np.float32))
-        set_uniform(prog, "u_dome_illum", illum.astype(np.float32))
+        set_uniform(prog, "u_dome_vp", vp.astype(np.float32))
+        set_uniform(
+            prog, "u_dome_dir", np.concatenate([dirs, np.zeros((pad, 4))]).astype(np.float32)
+        )
+        set_uniform(
+            prog, "u_dome_illum", np.concatenate([illum, np.zeros((pad, 4))]).astype(np.float32)
+        )
         set_uniform(prog, "u_dome_tiles", (float(self.cols), float(self.rows), float(n), 0.0))
         return unit + 1
 
@@ -143,3 +160,55 @@ class DomeShadowMaps:
             self.atlas.release()
         self.fbo = None
         self.atlas = None
+
+
+class SkyOcclusion:
+    """The real-time methods' sky occlusion: :data:`limits.DOME_OCCLUSION_SAMPLES` dome
+    directions with their shadow maps, re-drawn when the draw batches (rebuilt on any
+    geometry or transform change), the dome's map, its shadow mask, the sun split or
+    the frame's sample index change. The directions are a fixed set per sample index
+    (``FrameContext.sample_index``: 0 for a lone frame, so a still view draws them once
+    and does not flicker), a fresh stratified set for each frame an accumulation or taa
+    integrates, so those converge to the dome's shadowed light instead of keeping the
+    few directions' shadow wedges."""
+
+    #: Seed of the directions (with the sample index).
+    SEED = 0x5C1
+
+    def __init__(self, ctx: moderngl.Context) -> None:
+        self.maps = DomeShadowMaps(ctx, limits.DOME_OCCLUSION_SAMPLES)
+        self.samples: DomeSamples | None = None
+        self._key: tuple = ()
+        self._batches: object = None
+        self.draws = 0  # times the maps were drawn (tests, stats)
+
+    def prepare(
+        self,
+        delegate: GLRenderDelegate,
+        lp: LightPrim,
+        mask: int,
+        without_sun: bool,
+        sample_index: int = 0,
+    ) -> DomeSamples | None:
+        """This frame's samples, their maps drawn if anything they depend on changed."""
+        key = (id(lp.dome_map), mask, without_sun, sample_index)
+        if self.samples is not None and key == self._key and self._batches is delegate.batches:
+            return self.samples
+        samples = self.maps.draw_samples(lp, self.SEED, sample_index, without_sun)
+        if samples is None:
+            return None
+        self.maps.render(delegate, samples, mask)
+        self.samples, self._key, self._batches = samples, key, delegate.batches
+        self.draws += 1
+        return samples
+
+    def bind(self, prog: moderngl.Program, unit: int) -> int:
+        """Bind the atlas and the samples' uniforms; returns the next texture unit."""
+        if self.samples is None:
+            return unit
+        return self.maps.bind(prog, self.samples, unit)
+
+    def release(self) -> None:
+        self.maps.release()
+        self.samples = None
+        self._batches = None

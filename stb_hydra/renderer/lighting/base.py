@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import moderngl
 
+from ..dome_shadows import SkyOcclusion
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
 from ..graph import Rec, Resource, Tex
@@ -102,6 +103,10 @@ class LightingMethod:
     #: light's visibility while a lone real-time frame keeps the fixed set (no shimmer):
     #: the exact methods.
     area_shadows_per_frame: ClassVar[bool] = False
+    #: A textured dome's prefiltered sky light is shadowed by the sky occlusion maps
+    #: (``DOME_OCCLUSION``, ``renderer/dome_shadows.SkyOcclusion``): every method but
+    #: the reference, which samples the dome with shadow maps of its own.
+    dome_occlusion: ClassVar[bool] = True
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -110,6 +115,8 @@ class LightingMethod:
         self.warn: Warn = warn or (lambda _msg: None)
         #: Validated options (defaults filled in).
         self.o: dict[str, Any] = self.validate_options(options)
+        #: The textured dome's sky occlusion maps (made on first use).
+        self._sky: SkyOcclusion | None = None
 
     # -- the contract --
     @classmethod
@@ -163,6 +170,8 @@ class LightingMethod:
             defines["HAS_AMBIENT"] = True
         if dome is not None:
             defines["HAS_DOME_MAP"] = True  # the textured dome (common/dome.glsl)
+            if self._sky_occluded(frame):
+                defines["DOME_OCCLUSION"] = True  # common/dome_occlusion.glsl
         if frame.get(LightBuffer).links:
             defines["HAS_LINKS"] = True  # common/links.glsl
         if self.clearcoat:
@@ -229,7 +238,27 @@ class LightingMethod:
             unit += 1
         if d is not None and "u_dome_mult" in prog:  # common/dome.glsl
             unit = d.dome_env.bind(prog, unit)
+        if d is not None and "u_dome_shadow" in prog and self._sky_occluded(frame):
+            dist = frame.get(DistantLights)
+            assert dist.dome is not None
+            if self._sky is None:
+                self._sky = SkyOcclusion(frame.ctx)
+            mask = int(dist.dome.shadow_link_mask)
+            sky = self._sky.prepare(d, dist.dome, mask, dist.dome_sun, frame.sample_index)
+            if sky is not None:
+                unit = self._sky.bind(prog, unit)
         return unit
+
+    def _sky_occluded(self, frame: FrameContext) -> bool:
+        """Does this frame shadow the textured dome's prefiltered light (a method with
+        ``dome_occlusion``, a dome that casts shadows, no light linking)?"""
+        dome = frame.get(DistantLights).dome
+        return (
+            self.dome_occlusion
+            and dome is not None
+            and bool(dome.shadow_enable)
+            and not frame.get(LightBuffer).links
+        )
 
     def prepare(self, frame: FrameContext) -> None:
         """CPU work before the frame's uniforms are written."""
@@ -257,6 +286,13 @@ class LightingMethod:
 
     def release(self) -> None:
         """Free GL objects the method owns."""
+
+    def release_base(self) -> None:
+        """Free GL objects of the base class (the sky occlusion maps); the lighting
+        task calls it after :meth:`release`."""
+        if self._sky is not None:
+            self._sky.release()
+            self._sky = None
 
 
 def program(frame: FrameContext, frag: str, defines: dict[str, object]) -> moderngl.Program:

@@ -42,3 +42,4 @@ class LightingTask(Pass):
 
     def release(self) -> None:
         self.method.release()
+        self.method.release_base()
