@@ -36,6 +36,7 @@ from ... import limits
 from ..camera import ViewSetup
 from ..gl import set_uniform
 from ..graph import Tex
+from ..light_changes import Rule, change_uniforms, light_changes, light_snapshot
 from ..records import InViewLights
 from ..shader_constants import (
     IMAGE_UNIT_REUSE_RESERVOIR,
@@ -88,41 +89,12 @@ def temporal_reuse(mode: str, frame: FrameContext) -> bool:
     return mode == "on"
 
 
-#: Light-table columns compared between frames by :func:`reuse_light_changes`.
-SNAPSHOT = ("enabled", "live", "type", "position", "intensity", "range")
-
-
-def light_snapshot(table: Any) -> dict[str, np.ndarray]:
-    """Copies of the light-table columns :func:`reuse_light_changes` compares."""
-    n = int(table.n_rows)
-    return {k: np.array(table.cols[k][:n]) for k in SNAPSHOT}
-
-
-def reuse_light_changes(
-    before: dict[str, np.ndarray], now: dict[str, np.ndarray]
-) -> tuple[np.ndarray, np.ndarray]:
-    """Lights that changed between two snapshots (same row count): (spheres (k, 4):
-    centre xyz m + radius m, history caps (k,)) by ``limits.STB_REUSE_CHANGE_RULES``.
-    A sphere covers the light's influence range before and after, plus its move."""
-    on0 = before["enabled"] & before["live"]
-    on1 = now["enabled"] & now["live"]
-    switched = (on0 != on1) | (before["type"] != now["type"])
-    i0 = np.linalg.norm(np.asarray(before["intensity"], np.float64).reshape(len(on0), -1), axis=1)
-    i1 = np.linalg.norm(np.asarray(now["intensity"], np.float64).reshape(len(on1), -1), axis=1)
-    rel = np.abs(i1 - i0) / np.maximum(np.maximum(i0, i1), 1e-30)
-    rng = np.maximum(np.asarray(now["range"], np.float64), np.asarray(before["range"], np.float64))
-    moved = np.linalg.norm(
-        np.asarray(now["position"], np.float64) - np.asarray(before["position"], np.float64), axis=1
-    )
-    cap = np.full(len(on0), np.inf)
-    for c, di, dm in reversed(limits.STB_REUSE_CHANGE_RULES):
-        cap[(rel > di) | (moved > dm * np.maximum(rng, 1e-3))] = c
-    cap[switched] = limits.STB_REUSE_CHANGE_RULES[0][0]
-    cap[~(on0 | on1)] = np.inf  # off before and after
-    rows = np.nonzero(np.isfinite(cap))[0]
-    centre = np.asarray(now["position"], np.float64)[rows]
-    radius = np.minimum(rng[rows] + moved[rows], 1e30)
-    return np.column_stack([centre, radius]).reshape(-1, 4), cap[rows]
+#: ``limits.STB_REUSE_CHANGE_RULES`` as ``light_changes`` rules (no turn test) and the
+#: columns whose change is a switch.
+CHANGE_RULES: tuple[Rule, ...] = tuple(
+    (c, di, dm, -2.0) for c, di, dm in limits.STB_REUSE_CHANGE_RULES
+)
+CHANGE_EXACT = ("type",)
 
 
 class ReuseStage:
@@ -183,22 +155,19 @@ class ReuseStage:
                 now = light_snapshot(table)
                 before = self._lights
                 if before is not None and len(before["live"]) == len(now["live"]):
-                    spheres, caps = reuse_light_changes(before, now)
+                    spheres, caps = light_changes(before, now, CHANGE_RULES, CHANGE_EXACT)
                 self._lights = now
                 self._light_version = int(table.version)
         m_cap = float(method.o["reuse_m_cap"])
-        kmax = limits.STB_REUSE_MAX_CHANGES
-        if len(caps) > kmax:  # too many to test per pixel: cap everywhere
-            m_cap = min(m_cap, float(caps.min()))
-            spheres, caps = spheres[:0], caps[:0]
-        frame.stats["stb_reuse_light_changes"] = len(caps)
+        sph, cap, everywhere = change_uniforms(spheres, caps, limits.STB_REUSE_MAX_CHANGES)
+        n = len(caps)
+        if everywhere is not None:  # too many to test per pixel: cap everywhere
+            m_cap = min(m_cap, everywhere)
+            n = 0
+        frame.stats["stb_reuse_light_changes"] = n
         set_uniform(prog, "u_m_cap", m_cap)
-        set_uniform(prog, "u_changes", len(caps))
-        if len(caps):
-            sph = np.zeros((kmax, 4), np.float32)
-            cap = np.zeros(kmax, np.float32)
-            sph[: len(caps)] = np.minimum(spheres, 1e30)
-            cap[: len(caps)] = caps
+        set_uniform(prog, "u_changes", n)
+        if n:
             set_uniform(prog, "u_change_spheres", sph)
             set_uniform(prog, "u_change_caps", cap)
 

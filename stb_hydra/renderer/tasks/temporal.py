@@ -33,13 +33,13 @@ from ..frame import FrameContext
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
 from ..graph import Imported, Rec, Tex
+from ..light_changes import Rule, change_uniforms, light_changes, light_snapshot
 from ..lighting.base import TAA_INPUTS
 from ..records import FrameBlock, SceneColor
 from .base import Pass
 
 if TYPE_CHECKING:
     from ..gl_delegate import GLRenderDelegate
-    from ..light_table import LightTable
 
 HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
@@ -82,8 +82,9 @@ CUT_MOVE_FRACTION = 0.25
 #: Light changes that shorten the history where the light reaches (its influence
 #: sphere, grown by how far it moved): (history cap, relative intensity change,
 #: move as a fraction of its range, cos of the turn). The first row that applies
-#: wins; smaller changes (a flicker of a few %) are left to the clip box.
-LIGHT_CHANGE_RULES = ((1, 0.5, 0.25, 0.9), (8, 0.2, 0.05, 0.99))
+#: wins; smaller changes (a flicker of a few %) are left to the clip box
+#: (``renderer/light_changes.py``).
+LIGHT_CHANGE_RULES: tuple[Rule, ...] = ((1, 0.5, 0.25, 0.9), (8, 0.2, 0.05, 0.99))
 #: Changed lights passed to the shader; more than this: the smallest cap everywhere.
 MAX_LIGHT_CHANGES = limits.MAX_LIGHT_CHANGES
 #: Light-table columns whose change is a switch (history cap 1).
@@ -105,58 +106,6 @@ def halton_jitter(frame_index: int) -> tuple[float, float]:
     """Subpixel camera offset (px, in (-0.5, 0.5)) of a frame: Halton (2, 3)."""
     i = frame_index % JITTER_PERIOD + 1
     return _halton(i, 2) - 0.5, _halton(i, 3) - 0.5
-
-
-def light_changes(
-    before: dict[str, np.ndarray] | None, table: LightTable
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """Lights that changed a lot since the ``before`` snapshot (:func:`light_snapshot`):
-    ``(spheres (k, 4): centre xyz + radius, caps (k,))``, the history-length cap
-    inside each sphere (``LIGHT_CHANGE_RULES``: a light switched on or off, added,
-    removed or re-typed gets cap 1 over its whole influence range). None: nothing to
-    compare with (the history is dropped everywhere). Rows rewritten with the same
-    values (every time change does that) are no change."""
-    if before is None:
-        return None
-    now = light_snapshot(table)
-    n = len(now["enabled"])
-    if len(before["enabled"]) != n:
-        return None
-    on0 = before["enabled"] & before["live"]
-    on1 = now["enabled"] & now["live"]
-    cap = np.full(n, np.inf)
-    switched = np.zeros(n, dtype=bool)
-    for k in _LIGHT_EXACT:
-        a, b = before[k], now[k]
-        switched |= (a != b) if a.ndim == 1 else np.any(a != b, axis=1)
-    i0 = np.linalg.norm(np.asarray(before["intensity"], np.float64), axis=1)
-    i1 = np.linalg.norm(np.asarray(now["intensity"], np.float64), axis=1)
-    rel = np.abs(i1 - i0) / np.maximum(np.maximum(i0, i1), 1e-30)
-    rng = np.maximum(np.asarray(now["range"], np.float64), np.asarray(before["range"], np.float64))
-    moved = np.linalg.norm(now["position"] - before["position"], axis=1)
-    move = moved / np.maximum(rng, 1e-3)
-    d0 = np.asarray(before["direction"], np.float64)
-    d1 = np.asarray(now["direction"], np.float64)
-    norms = np.linalg.norm(d0, axis=1) * np.linalg.norm(d1, axis=1)
-    cos = np.where(norms > 0, np.sum(d0 * d1, axis=1) / np.maximum(norms, 1e-30), 1.0)
-    for c, di, dm, dc in reversed(LIGHT_CHANGE_RULES):
-        hit = (rel > di) | (move > dm) | (cos < dc)
-        cap[hit] = c
-    cap[switched] = LIGHT_CHANGE_RULES[0][0]
-    cap[~(on0 | on1)] = np.inf  # off before and after: nothing to see
-    rows = np.nonzero(np.isfinite(cap))[0]
-    if not len(rows):
-        return np.zeros((0, 4)), np.zeros(0)
-    centre = np.asarray(now["position"], np.float64)[rows]
-    radius = np.minimum(rng[rows] + moved[rows], 1e30)
-    return np.column_stack([centre, radius]), cap[rows]
-
-
-def light_snapshot(table: LightTable) -> dict[str, np.ndarray]:
-    """The light-table columns :func:`lights_changed` compares (copies)."""
-    n = table.n_rows
-    keys = (*_LIGHT_EXACT, "intensity", "range", "position", "direction")
-    return {k: np.array(table.cols[k][:n]) for k in keys}
 
 
 def is_camera_cut(prev: ViewSetup, cur: ViewSetup, scene_diagonal: float) -> bool:
@@ -223,12 +172,13 @@ class TemporalTask(Pass):
         reason = ""
         self._changes = (np.zeros((0, 4)), np.zeros(0))
         if version != self._light_version:
-            changes = light_changes(self._lights, table)
-            self._lights = light_snapshot(table)
-            if changes is None:
-                reason = "lights"
+            now = light_snapshot(table)
+            before = self._lights
+            if before is None or len(before["enabled"]) != len(now["enabled"]):
+                reason = "lights"  # nothing to compare with (rows added or removed)
             else:
-                self._changes = changes
+                self._changes = light_changes(before, now, LIGHT_CHANGE_RULES, _LIGHT_EXACT)
+            self._lights = now
         self._light_version = version
         if self.count == 0 or self._prev_view is None:
             reason = "start"
@@ -273,18 +223,16 @@ class TemporalTask(Pass):
         set_uniform(prog, "u_jitter", tuple(float(j) for j in frame.view.jitter))
         set_uniform(prog, "u_reset", 1.0 if reason else 0.0)
         spheres, caps = self._changes
+        sph, cap, everywhere = change_uniforms(spheres, caps, MAX_LIGHT_CHANGES)
         max_len = tuple(float(m) for m in self.max_history)
-        if len(caps) > MAX_LIGHT_CHANGES:  # too many to test per pixel: cap everywhere
-            max_len = tuple(min(m, float(caps.min())) for m in max_len)
-            spheres, caps = spheres[:0], caps[:0]
-        frame.stats["temporal_light_changes"] = len(caps)
+        n = len(caps)
+        if everywhere is not None:  # too many to test per pixel: cap everywhere
+            max_len = tuple(min(m, everywhere) for m in max_len)
+            n = 0
+        frame.stats["temporal_light_changes"] = n
         set_uniform(prog, "u_max_len", max_len)
-        set_uniform(prog, "u_light_changes", len(caps))
-        if len(caps):
-            sph = np.zeros((MAX_LIGHT_CHANGES, 4), np.float32)
-            cap = np.ones(MAX_LIGHT_CHANGES, np.float32)
-            sph[: len(caps)] = np.minimum(spheres, 1e30)
-            cap[: len(caps)] = caps
+        set_uniform(prog, "u_light_changes", n)
+        if n:
             set_uniform(prog, "u_light_spheres", sph)
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
