@@ -403,6 +403,40 @@ def test_texture_edit_resyncs(gl_ctx, tmp_path):
     assert float(np.median(after[low])) == pytest.approx(ALBEDO * 0.5, rel=0.05)
 
 
+def test_texture_file_changed_on_disk_reloads(gl_ctx, tmp_path):
+    """The previewer's file watcher path (``Engine.reload_files``): the dome's texture
+    file is rewritten in place; the file is watched (``texture_files``) and the next
+    frame lights with the new pixels (the half sky's underside lights up under grey)."""
+    import os
+    import time
+
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    tex = tmp_path / "sky.exr"
+    write_exr(tex, half_sky())
+    stage = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(str(tex))))
+    eng = Engine(stage, RenderSettings(width=W, height=H, lighting="stb"), ctx=gl_ctx)
+    try:
+        eng.request_aovs({"color"})
+        eng.render(None)
+        assert os.path.realpath(tex) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
+        before = eng.aovs["color"][..., 1].copy()
+        write_exr(tex, np.full((32, 64, 3), 0.5, np.float32))
+        st = os.stat(tex)  # a new mtime even on a coarse clock (the map cache's key)
+        os.utime(tex, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
+        assert eng.reload_files({str(tex)}) == 1  # the dome light, no material texture
+        eng.render(None)
+        after = eng.aovs["color"][..., 1].copy()
+    finally:
+        eng.release()
+    o, d = pixel_rays(stage)
+    n = sphere_normals(o, d)
+    low = interior(np.isfinite(n[..., 0])) & (np.nan_to_num(n[..., 1]) < -0.6)
+    assert float(np.median(before[low])) < 0.2 * ALBEDO  # albedo (1 + n.y) / 2 <= 0.2 albedo
+    assert float(np.median(after[low])) == pytest.approx(ALBEDO * 0.5, rel=0.05)
+
+
 def test_sky_occlusion_maps_follow_the_geometry(gl_ctx, tmp_path):
     """The real-time sky occlusion draws its fixed directions' maps once for a still
     scene and again when geometry moves; a box lifted far above the floor no longer

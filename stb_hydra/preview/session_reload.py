@@ -124,7 +124,7 @@ class LiveReload(SessionState):
         }
         textures = changed - set(layers)
         if textures and self.engine is not None:
-            self.engine.delegate.reload_textures(textures)
+            self.engine.reload_files(textures)
             self.texture_reloads += 1
         touched = [(real, layer) for real, layer in layers.items() if real in changed]
         for real, layer in touched:

@@ -18,6 +18,7 @@ the requested AOVs change. Every phase and pass is timed.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -393,6 +394,19 @@ class Engine:
     @property
     def aovs(self) -> dict[str, np.ndarray]:
         return self.aov_output.results
+
+    def reload_files(self, paths: Iterable[str]) -> int:
+        """Image files changed on disk (the previewer's file watcher): material textures
+        that read them reload on the next commit, and lights whose texture (a dome's, a
+        rect's) is one of them are read again on the next sync. Returns how many
+        textures and lights will reload."""
+        paths = set(paths)
+        n = self.delegate.reload_textures(paths)
+        real = {os.path.realpath(p) for p in paths}
+        for light, file in self.delegate.light_texture_files().items():
+            if os.path.realpath(file) in real and self.render_index.mark_dirty(light):
+                n += 1
+        return n
 
     def request_aovs(self, names: Iterable[str]) -> None:
         """AOVs read back on the last frame of each render (``color`` always)."""

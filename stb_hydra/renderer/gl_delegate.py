@@ -245,12 +245,22 @@ class GLRenderDelegate(RenderDelegate):
         return (key_g, mp.key(), m.dynamic, (m.link_group, m.shadow_group))
 
     def texture_files(self) -> set[str]:
-        """Files of the textures in use (every tile of a UDIM set), resolved paths."""
+        """Files of the textures in use (every tile of a UDIM set, and the lights'
+        textures: domes, rects), resolved paths."""
         out: set[str] = set()
         for key in self.textures.textures:
             info = self.textures.info(key.file)
             out.update(p for p, _t in info.layers) if info is not None else out.add(key.file)
+        out.update(self.light_texture_files().values())
         return out
+
+    def light_texture_files(self) -> dict[str, str]:
+        """Light path -> the texture file it reads (``LightPrim.texture_file``)."""
+        return {
+            path: sp.light.texture_file
+            for path, sp in self.lights.items()
+            if sp.light is not None and sp.light.texture_file
+        }
 
     def reload_textures(self, paths: set[str]) -> int:
         """Files changed on disk: reload the textures that read them on the next commit

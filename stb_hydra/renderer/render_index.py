@@ -74,6 +74,14 @@ class RenderIndex:
             if bits:
                 dirty[e.path] = dirty.get(e.path, DirtyBits.Clean) | bits
 
+    def mark_dirty(self, path: str, bits: DirtyBits = DirtyBits.AllDirty) -> bool:
+        """Sync prim ``path`` again on the next :meth:`sync_all` (something it reads
+        outside the stage changed, e.g. a texture file on disk). False: no such prim."""
+        if path not in self.prims:
+            return False
+        self._dirty[path] = self._dirty.get(path, DirtyBits.Clean) | bits
+        return True
+
     def _insert(self, entries: Iterable[AddedPrimEntry]) -> None:
         for e in entries:
             old = self.prims.pop(e.path, None)
