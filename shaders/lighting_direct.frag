@@ -28,8 +28,14 @@ void main() {
 #else
     vec3 c = sun_and_ambient(s);
 #endif
-#if defined(DOME_SAMPLED) && !defined(HAS_LINKS)
-    c += dome_sampled(s);  // the textured dome, importance-sampled and shadowed
+#ifdef DOME_SAMPLED
+    // The textured dome, importance-sampled and shadowed (under light linking: in the
+    // groups its link collection reaches, link_ambient[group].w).
+#ifdef HAS_LINKS
+    c += dome_sampled(s) * link_ambient[group].w;
+#else
+    c += dome_sampled(s);
+#endif
 #endif
 #ifdef LOCAL_LIGHTS
     // Point lights first (u_point_lights of them, renderer/light_buffer.points_first):

@@ -437,6 +437,55 @@ def test_texture_file_changed_on_disk_reloads(gl_ctx, tmp_path):
     assert float(np.median(after[low])) == pytest.approx(ALBEDO * 0.5, rel=0.05)
 
 
+LINKED_CUBE = """
+def Cube "Other" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{
+    double size = 0.8
+    double3 xformOp:translate = (2.3, 0, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    rel material:binding = </Looks/Lambert>
+}
+"""
+
+
+@pytest.mark.parametrize("method", ["reference", "stb"])
+def test_textured_dome_under_light_linking(gl_ctx, tmp_path, method):
+    """A textured dome whose light link includes only the ball lights the ball with its
+    texture (the half-sky closed form, as without links: it used to light every linked
+    group with its flat mean) and leaves the cube beside it unlit; the sky behind both is
+    still the texture."""
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    tex = write_exr(tmp_path / "halfsky.exr", half_sky())
+    link = (
+        "    rel collection:lightLink:includes = </Ball>\n"
+        "    uniform bool collection:lightLink:includeRoot = 0\n"
+    )
+    text = SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(tex, extra=link))
+    stage = usda_stage(text + LINKED_CUBE)
+    acc = 8 if method == "reference" else 1
+    eng = Engine(stage, RenderSettings(width=W, height=H, lighting=method), ctx=gl_ctx)
+    try:
+        eng.request_aovs({"color", "depth"})
+        eng.render(None, accumulate=acc)
+        img = eng.aovs["color"][..., :3].copy()
+        depth = eng.aovs["depth"].reshape(H, W)
+    finally:
+        eng.release()
+    med, _ = check_half_sky(img, stage, np.array([0.0, 1.0, 0.0]))
+    assert med <= 0.05, f"{method}: ball median {med:.4f}"
+    o, d = pixel_rays(stage)
+    open_sky = interior(depth <= 0) & (np.abs(d[..., 1]) > 0.05)
+    assert np.abs(img[open_sky, 1] - (d[open_sky, 1] > 0)).max() < 0.05  # the texture
+    ball = np.isfinite(sphere_normals(o, d)[..., 0])
+    cube = interior((depth > 0) & ~ball) & (np.arange(W)[None, :] > W // 2)
+    assert cube.sum() >= 20
+    assert float(img[cube].max()) < 1e-3  # no light reaches the cube
+
+
 def test_sky_occlusion_maps_follow_the_geometry(gl_ctx, tmp_path):
     """The real-time sky occlusion draws its fixed directions' maps once for a still
     scene and again when geometry moves; a box lifted far above the floor no longer

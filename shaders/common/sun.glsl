@@ -79,13 +79,19 @@ vec3 sun_and_ambient(Surface s) {
     c += u_ambient.rgb * env_albedo(s, NoV) * s.occlusion;
 #endif
 #endif
-#if defined(HAS_DOME_MAP) && !defined(HAS_LINKS) && !defined(DOME_SAMPLED)
-    // The textured dome (common/dome.glsl); under light linking each group's ambient
-    // holds the domes' means (link_ambient); the reference samples it (DOME_SAMPLED).
-#ifdef DOME_OCCLUSION
-    c += dome_light(s, s.occlusion, dome_sky_visibility(s));
+#if defined(HAS_DOME_MAP) && !defined(DOME_SAMPLED)
+    // The textured dome (common/dome.glsl); the reference samples it (DOME_SAMPLED).
+    // Under light linking it lights the groups its link collection reaches
+    // (link_ambient[group].w; the other domes' means are in link_ambient's rgb).
+#ifdef HAS_LINKS
+    float dome_on = link_ambient[group].w;
 #else
-    c += dome_light(s, s.occlusion, vec2(1.0));
+    float dome_on = 1.0;
+#endif
+#ifdef DOME_OCCLUSION
+    c += dome_light(s, s.occlusion, dome_sky_visibility(s)) * dome_on;
+#else
+    c += dome_light(s, s.occlusion, vec2(1.0)) * dome_on;
 #endif
 #endif
     return c;

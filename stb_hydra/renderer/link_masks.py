@@ -6,8 +6,9 @@
   (binding ``SSBO_LIGHT_LINKS``, ``shaders/common/links.glsl``), std430::
 
       uvec4 link_distant;                  // masks: x the sun, y..w the extra distant lights
-      vec4  link_ambient[LIM_LINK_GROUPS]; // rgb ambient (nits) per group: its dome lights
-                                           // + the settings' ambient
+      vec4  link_ambient[LIM_LINK_GROUPS]; // rgb ambient (nits) per group: its dome lights'
+                                           // means + the settings' ambient; w 1 where
+                                           // the textured dome lights the group
       uint  link_mask[];                   // one mask per light of the light buffer, in its
                                            // order (the FoV list; the bake's static lights)
 
@@ -58,9 +59,13 @@ def pack_link_buffer(
         if base_ambient is not None:
             amb[:, :3] = np.asarray(base_ambient, dtype=np.float32)
         bits = 1 << np.arange(limits.MAX_LIGHT_LINK_GROUPS, dtype=np.uint64)
+        textured = table.rows.get(distant.dome.path, -1) if distant.dome is not None else -1
         for r in distant.dome_rows:
             on = (np.uint64(masks[r]) & bits) != 0
-            amb[on, :3] += table.cols["intensity"][r]
+            if r == textured:
+                amb[on, 3] = 1.0  # lit by its map (common/sun.glsl, dome_sampled)
+            else:
+                amb[on, :3] += table.cols["intensity"][r]
         out[4:HEADER_WORDS] = amb.reshape(-1).view(np.uint32)
     if len(rows):
         out[HEADER_WORDS : HEADER_WORDS + len(rows)] = masks[rows]

@@ -251,14 +251,9 @@ class LightingMethod:
 
     def _sky_occluded(self, frame: FrameContext) -> bool:
         """Does this frame shadow the textured dome's prefiltered light (a method with
-        ``dome_occlusion``, a dome that casts shadows, no light linking)?"""
+        ``dome_occlusion``, a dome that casts shadows)?"""
         dome = frame.get(DistantLights).dome
-        return (
-            self.dome_occlusion
-            and dome is not None
-            and bool(dome.shadow_enable)
-            and not frame.get(LightBuffer).links
-        )
+        return self.dome_occlusion and dome is not None and bool(dome.shadow_enable)
 
     def prepare(self, frame: FrameContext) -> None:
         """CPU work before the frame's uniforms are written."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from ..dome_shadows import DomeSamples, DomeShadowMaps
-from ..records import DistantLights, LightBuffer
+from ..records import DistantLights
 from .base import LightingMethod, program
 
 if TYPE_CHECKING:
@@ -43,10 +43,10 @@ class ReferenceLighting(LightingMethod):
 
     def _dome_samples(self, frame: FrameContext) -> DomeSamples | None:
         """Draw this frame's dome directions and render their shadow maps (a textured
-        dome without light linking; None otherwise)."""
+        dome; None otherwise)."""
         dome = frame.get(DistantLights).dome
         d = self.delegate
-        if dome is None or d is None or frame.get(LightBuffer).links:
+        if dome is None or d is None:
             return None
         if self._dome is None:
             self._dome = DomeShadowMaps(frame.ctx)
