@@ -51,11 +51,23 @@ float dome_lod(float roughness) {
 // split sum, times `occlusion` (the material's) and the share `vis` (diffuse,
 // specular) of the sky that reaches the point (common/dome_occlusion.glsl; vec2(1):
 // unshadowed).
+// A clearcoat (HAS_CLEARCOAT) adds its own split-sum lobe at its roughness and takes
+// its Fresnel share off the base layer, as brdf_eval does for the other lights.
 vec3 dome_light(Surface s, float occlusion, vec2 vis) {
     float NoV = max(dot(s.N, s.V), 1e-4);
     vec3 diff = s.diffuse * dome_irradiance(s.N);
     vec3 R = reflect(-s.V, s.N);
     vec3 spec = env_brdf_approx(s.f0, s.roughness, NoV) * dome_radiance(R, dome_lod(s.roughness));
-    return (diff * (u_dome_mult.x * vis.x) + spec * (u_dome_mult.y * vis.y)) * occlusion;
+    vec3 c = diff * (u_dome_mult.x * vis.x) + spec * (u_dome_mult.y * vis.y);
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) {
+        float fc = s.coat * fresnel_schlick(NoV, vec3(COAT_F0)).x;
+        float coat_rough = sqrt(s.coat_alpha);
+        vec3 coat = s.coat * env_brdf_approx(vec3(COAT_F0), coat_rough, NoV)
+            * dome_radiance(R, dome_lod(coat_rough));
+        c = c * (1.0 - fc) + coat * (u_dome_mult.y * vis.y);
+    }
+#endif
+    return c * occlusion;
 }
 #endif
