@@ -5,7 +5,9 @@
 #ifdef LOCAL_LIGHTS
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
-uniform uint u_point_lights;  // the first u_point_lights lights have no extent
+uniform uint u_point_lights;  // the first u_point_lights lights have no extent,
+uniform uint u_sphere_end;    // those up to u_sphere_end narrow sphere lights,
+uniform uint u_wide_sphere_end;  // those up to u_wide_sphere_end other sphere lights
 #endif
 
 #ifdef DOME_SAMPLED
@@ -32,17 +34,33 @@ void main() {
     c += dome_sampled(s);  // the textured dome, importance-sampled and shadowed
 #endif
 #ifdef LOCAL_LIGHTS
-    // Point lights first (u_point_lights of them, renderer/light_buffer.points_first):
-    // their loop holds only the point model; the rest take the full light_radiance.
+    // Point lights first (u_point_lights of them), then sphere lights narrow against
+    // every lobe (up to u_sphere_end), then the other sphere lights (up to
+    // u_wide_sphere_end; renderer/light_buffer.by_light_model): each loop holds only its
+    // model's code; the rest take the full light_radiance.
     uint n = u_counts.x;
     uint np = min(u_point_lights, n);
+    uint ns = clamp(u_sphere_end, np, n);
+    uint nw = clamp(u_wide_sphere_end, ns, n);
     for (uint i = 0u; i < np; ++i) {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
         c += light_radiance_point(lights[i], s);
     }
-    for (uint i = np; i < n; ++i) {
+    for (uint i = np; i < ns; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_narrow(lights[i], s);
+    }
+    for (uint i = ns; i < nw; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_wide(lights[i], s);
+    }
+    for (uint i = nw; i < n; ++i) {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif

@@ -89,8 +89,10 @@ class LightingMethod:
     hiz_level: int = 0
     #: The lighting pass also writes ``TAA_INPUTS`` (set by the lighting task).
     taa_inputs: bool = False
-    #: The method's light loop has a point-only part: in-view lights are ordered point
-    #: lights first and ``u_point_lights`` says how many (``InViewLights.point_count``).
+    #: The method's light loop has point-only and sphere-only parts: in-view lights are
+    #: ordered point lights, narrow sphere lights, other sphere lights, the rest;
+    #: ``u_point_lights``, ``u_sphere_end`` and ``u_wide_sphere_end`` say where the parts
+    #: end (``InViewLights``, ``light_buffer.by_light_model``).
     points_first: ClassVar[bool] = False
     #: Area-light penumbrae rotate their point set per integrated frame
     #: (``AREA_SHADOW_PER_FRAME`` + ``AREA_SHADOW_SEQUENCE``, common/shadow.glsl; by
@@ -191,7 +193,13 @@ class LightingMethod:
         if "u_area_shadow_index" in prog:  # AREA_SHADOW_SEQUENCE (common/shadow.glsl)
             set_uniform(prog, "u_area_shadow_index", float(frame.sample_index))
         if "u_point_lights" in prog:
-            set_uniform(prog, "u_point_lights", frame.get(InViewLights).point_count)
+            iv = frame.get(InViewLights)
+            set_uniform(prog, "u_point_lights", iv.point_count)
+            end = iv.point_count + iv.sphere_count
+            if "u_sphere_end" in prog:
+                set_uniform(prog, "u_sphere_end", end)
+            if "u_wide_sphere_end" in prog:
+                set_uniform(prog, "u_wide_sphere_end", end + iv.wide_sphere_count)
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)
