@@ -72,31 +72,40 @@ void main() {
                 uint first = nd.first_light;
                 // A leaf's lights ascend (light_tree_build.build_cells): point lights,
                 // narrow and other sphere lights, the rest, each part in a loop holding
-                // only its model's code (renderer/light_buffer.by_light_model).
+                // only its model's code (renderer/light_buffer.by_light_model), compiled
+                // only for the models the scene has (LOOP_*, lighting/base.light_loops).
                 uint k = 0u;
+#ifdef LOOP_POINT
                 for (; k < count; ++k) {
                     uint i = tree_lights[first + k];
                     if (i >= u_point_lights) break;
                     if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_point(lights[i], s);
                 }
+#endif
+#ifdef LOOP_SPHERE_NARROW
                 for (; k < count; ++k) {
                     uint i = tree_lights[first + k];
                     if (i >= u_sphere_end) break;
                     if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_sphere_narrow(lights[i], s);
                 }
+#endif
+#ifdef LOOP_SPHERE_WIDE
                 for (; k < count; ++k) {
                     uint i = tree_lights[first + k];
                     if (i >= u_wide_sphere_end) break;
                     if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_sphere_wide(lights[i], s);
                 }
+#endif
+#ifdef LOOP_GENERAL
                 for (; k < count; ++k) {
                     uint i = tree_lights[first + k];
                     if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance(lights[i], s);
                 }
+#endif
             }
             ni += 1u;
         } else {

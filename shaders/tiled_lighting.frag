@@ -52,8 +52,11 @@ void main() {
     // lights come first (u_point_lights), then sphere lights (narrow up to u_sphere_end,
     // the others up to u_wide_sphere_end; renderer/light_buffer.by_light_model): each
     // part runs a loop holding only its model's code (light_radiance_point,
-    // light_radiance_sphere_narrow / _wide), the rest the full light_radiance.
+    // light_radiance_sphere_narrow / _wide), the rest the full light_radiance. A loop
+    // is compiled only for the models the scene has (LOOP_* defines,
+    // lighting/base.light_loops; wide spheres fall to the general loop when it is in).
     uint k = 0u;
+#ifdef LOOP_POINT
     for (; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
         if (i >= u_point_lights) break;
@@ -63,6 +66,8 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance_point(lights[i], s);
     }
+#endif
+#ifdef LOOP_SPHERE_NARROW
     for (; k < h.y; ++k) {  // then the narrow sphere lights (up to u_sphere_end)
         uint i = cell_lights[h.x + k];
         if (i >= u_sphere_end) break;
@@ -72,6 +77,8 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance_sphere_narrow(lights[i], s);
     }
+#endif
+#ifdef LOOP_SPHERE_WIDE
     for (; k < h.y; ++k) {  // the other sphere lights (up to u_wide_sphere_end)
         uint i = cell_lights[h.x + k];
         if (i >= u_wide_sphere_end) break;
@@ -81,6 +88,8 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance_sphere_wide(lights[i], s);
     }
+#endif
+#ifdef LOOP_GENERAL
     for (; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
 #ifdef HAS_LINKS
@@ -89,6 +98,7 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance(lights[i], s);
     }
+#endif
     c += emission;
     write_lighting(px, s, c);
 }

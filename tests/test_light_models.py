@@ -8,11 +8,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from stb_hydra import limits
 from stb_hydra.renderer import shader_constants as sc
 from stb_hydra.renderer.light_buffer import by_light_model, narrow_spheres
 from stb_hydra.renderer.light_table import LightTable
+from stb_hydra.renderer.lighting.base import light_loops, light_models
+from stb_hydra.renderer.records import InViewLights
 from stb_hydra.scene import prims
 from stb_hydra.scene.prims import LightPrim
 
@@ -132,3 +135,83 @@ def test_sphere_form_factor_closed_form_matches_quadrature():
             got = sphere_form_factor(c, r, nrm)
             want = _cap_form_factor(d, r, theta)
             assert abs(got - want) <= 1e-4 * full + 1e-9, (d, r, theta, got, want)
+
+
+MODELS = ("point", "sphere_narrow", "sphere_wide", "general")
+
+
+@pytest.mark.parametrize("clearcoat", [False, True])
+def test_light_loops_cover_every_model_with_the_fewest_loops(clearcoat):
+    """Every subset of light models: each model present has its loop or runs in the
+    general loop (whose range starts where the previous loop ends: the models it takes
+    must follow every compiled special loop in the light order); no loop for a model
+    the scene lacks; never the wide-sphere and the general loop together (the LTC code
+    twice); with a clearcoat no sphere loop (each would inline the coated
+    light_radiance)."""
+    order = {m: i for i, m in enumerate(MODELS)}
+    for k in range(1 << len(MODELS)):
+        models = frozenset(m for i, m in enumerate(MODELS) if k >> i & 1)
+        loops = light_loops(models, clearcoat)
+        assert set(loops) <= set(MODELS)
+        assert not {"sphere_wide", "general"} <= loops
+        uncovered = models - loops
+        if uncovered:
+            assert "general" in loops
+            last_special = max((order[m] for m in loops - {"general"}), default=-1)
+            assert min(order[m] for m in uncovered) > last_special, (models, loops)
+        for m in loops - {"general"}:
+            assert m in models
+        if "general" in loops:
+            assert models - {"point"}
+        if clearcoat:
+            assert not loops & {"sphere_narrow", "sphere_wide"}
+    assert light_loops(frozenset({"point"}), clearcoat) == {"point"}
+    assert light_loops(frozenset(), clearcoat) == frozenset()
+    # the courtyard: sphere lights (IES spots, none narrow) and rects -> one loop
+    assert light_loops(frozenset({"sphere_wide", "general"}), clearcoat) == {"general"}
+
+
+def test_light_models_from_partition_counts():
+    def iv(n, p, s, w):
+        return InViewLights(rows=np.arange(n), point_count=p, sphere_count=s, wide_sphere_count=w)
+
+    assert light_models(iv(0, 0, 0, 0)) == frozenset()
+    assert light_models(iv(5, 5, 0, 0)) == {"point"}
+    assert light_models(iv(5, 0, 2, 3)) == {"sphere_narrow", "sphere_wide"}
+    assert light_models(iv(7, 1, 1, 1)) == set(MODELS)
+    assert light_models(iv(4, 0, 0, 0)) == {"general"}  # not split: one general loop
+
+
+@pytest.mark.gl
+def test_a_model_switching_every_frame_builds_its_loop_once(gl_ctx):
+    """A light that turns from a sphere into a point light and back every frame: the
+    point loop is compiled in once (one new lighting program), then stays in -- no
+    program is built on the later frames."""
+    from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
+
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+    from stb_hydra.renderer.gl import shader_library
+
+    light = (
+        'def SphereLight "L"\n{\n    float inputs:intensity = 500\n'
+        "    float inputs:radius = 0.05\n    double3 xformOp:translate = (0, 1, 0)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    stage = usda_stage(USDA_HEADER + camera_usda((0, 4, 6), -30) + ground_usda(10) + light)
+    radius = stage.GetPrimAtPath("/L").GetAttribute("inputs:radius")
+    eng = Engine(stage, RenderSettings(width=32, height=18, lighting="reference"))
+    lib = shader_library(eng.ctx)
+    try:
+        eng.render()
+        assert eng.method.light_models & {"sphere_narrow", "sphere_wide"}
+        built = []
+        for k in range(4):
+            radius.Set(0.0 if k % 2 == 0 else 0.05)
+            before = lib.compiled
+            eng.render()
+            built.append(lib.compiled - before)
+        assert "point" in eng.method.light_models
+        assert built[0] >= 1 and built[1:] == [0, 0, 0], built
+    finally:
+        eng.release()

@@ -305,14 +305,22 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
         diff = dsp * E; spec = ssp * E;
         return true;
     }
-    if (L.area.z == AREA_SPHERE) return sphere_reflect(L, s, Ldir, dist, f, ws, ssp, diff, spec);
+    // A sphere's diffuse is its closed form (sphere_form_factor), so it needs the
+    // silhouette polygon only for the LTC specular; the other models integrate theirs.
+    // One polygon and one LTC call serve both (each is inlined code: issue 34).
+    bool sphere = L.area.z == AREA_SPHERE;
+    if (sphere && dist <= L.area.x * 1.0001) return false;  // inside: back faces
     vec3 v[AREA_MAXV];
-    int n = area_polygon(L, s.P, v);
-    if (n == 0) return false;
+    int n = 0;
+    if (!sphere || ws > 0.0) {
+        n = area_polygon(L, s.P, v);
+        if (n == 0 && !sphere) return false;
+    }
     float window = range_window(dist, L.pos_range.w);
     // Radiance x focus tint x IES scale (no emission model: the polygon integrates it).
     vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
-    float F = polygon_form_factor(v, n, s.N);
+    float F = sphere ? sphere_form_factor(Ldir * dist, L.area.x, s.N)
+                     : polygon_form_factor(v, n, s.N);
     diff = s.diffuse * Lrad * F;
     // Specular: the point model (the centre's direction, the far-field illuminance) for
     // a light narrow against the lobe, LTC for a wide one.

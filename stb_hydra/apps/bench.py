@@ -590,9 +590,15 @@ def write_text(path: str, text: str) -> None:
 
 
 #: Per-cell light counts of the cell-list methods (tiled, clustered, lighttree; None
-#: for the others): lights per tile / cluster (mean, p95, max, uncapped) and the mean
+#: for the others): lights per tile / cluster (mean, median, p95, max, uncapped) and the mean
 #: over the in-view lights -- the share of the reference's light-pixel work kept.
-CELL_FIELDS = ("cell_lights_mean", "cell_lights_p95", "cell_lights_max", "cell_light_share")
+CELL_FIELDS = (
+    "cell_lights_mean",
+    "cell_lights_p50",
+    "cell_lights_p95",
+    "cell_lights_max",
+    "cell_light_share",
+)
 
 CSV_FIELDS = (
     "method",
