@@ -5,7 +5,9 @@
 #ifdef LOCAL_LIGHTS
 #include "common/lights.glsl"
 #include "common/shadow.glsl"
-uniform uint u_point_lights;  // the first u_point_lights lights have no extent
+uniform uint u_point_lights;  // the first u_point_lights lights have no extent,
+uniform uint u_sphere_end;    // those up to u_sphere_end narrow sphere lights,
+uniform uint u_wide_sphere_end;  // those up to u_wide_sphere_end other sphere lights
 #endif
 
 #ifdef DOME_SAMPLED
@@ -38,22 +40,47 @@ void main() {
 #endif
 #endif
 #ifdef LOCAL_LIGHTS
-    // Point lights first (u_point_lights of them, renderer/light_buffer.points_first):
-    // their loop holds only the point model; the rest take the full light_radiance.
+    // Point lights first (u_point_lights of them), then sphere lights narrow against
+    // every lobe (up to u_sphere_end), then the other sphere lights (up to
+    // u_wide_sphere_end; renderer/light_buffer.by_light_model): each loop holds only its
+    // model's code; the rest take the full light_radiance. A loop is compiled only when
+    // the scene has lights of its model (LOOP_* defines, lighting/base.light_loops);
+    // a model without its loop has no lights here, or lies in the general loop's range
+    // (wide spheres when LOOP_GENERAL is in: it starts where the last loop ended).
     uint n = u_counts.x;
-    uint np = min(u_point_lights, n);
-    for (uint i = 0u; i < np; ++i) {
+    uint i = 0u;
+#ifdef LOOP_POINT
+    for (uint e = min(u_point_lights, n); i < e; ++i) {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
         c += light_radiance_point(lights[i], s);
     }
-    for (uint i = np; i < n; ++i) {
+#endif
+#ifdef LOOP_SPHERE_NARROW
+    for (uint e = min(u_sphere_end, n); i < e; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_narrow(lights[i], s);
+    }
+#endif
+#ifdef LOOP_SPHERE_WIDE
+    for (uint e = min(u_wide_sphere_end, n); i < e; ++i) {
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_wide(lights[i], s);
+    }
+#endif
+#ifdef LOOP_GENERAL
+    for (; i < n; ++i) {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
         c += light_radiance(lights[i], s);
     }
+#endif
 #endif
     c += emission;
     write_lighting(px, s, c);

@@ -4,7 +4,8 @@
 // holds the pixel's view depth is entered (a leaf evaluates its lights), a missed
 // node jumps over its subtree by its skip count. Node (Listing 1, std430 16 B):
 // min depth, max depth, first light, bits = leaf | count << 1 | skip << 17.
-// The light loop is the reference's (same includes) over the leaf's lights.
+// The light loop is the reference's (same includes, split by light model) over the
+// leaf's lights.
 #include "common/gbuffer.glsl"
 #include "common/sun.glsl"
 #include "common/lights.glsl"
@@ -29,6 +30,18 @@ int depth_slice(float d) {
     return 1 + clamp(j, 0, int(u_slices.z) - 1);
 }
 
+uniform uint u_point_lights;     // lights [0, u_point_lights) have no extent,
+uniform uint u_sphere_end;       // then narrow sphere lights,
+uniform uint u_wide_sphere_end;  // then the other sphere lights
+
+// Light i is linked to the pixel's group and P lies within its range.
+bool tree_light_reaches(uint i, vec3 P, uint group) {
+#ifdef HAS_LINKS
+    if (!light_linked(i, group)) return false;
+#endif
+    return length(lights[i].pos_range.xyz - P) < lights[i].pos_range.w;
+}
+
 #include "common/lighting_out.glsl"
 
 void main() {
@@ -43,6 +56,7 @@ void main() {
     uint group = link_group(px);  // lights test their mask bit for it (common/links.glsl)
     vec3 c = sun_and_ambient(s, group);
 #else
+    uint group = 0u;  // unused without links
     vec3 c = sun_and_ambient(s);
 #endif
     float depth = texelFetch(g_depth, px, 0).r;
@@ -55,14 +69,43 @@ void main() {
         if (depth >= nd.min_depth && depth <= nd.max_depth) {
             if ((nd.bits & 1u) != 0u) {
                 uint count = (nd.bits >> 1) & 0xFFFFu;
-                for (uint k = 0u; k < count; ++k) {
-                    uint i = tree_lights[nd.first_light + k];
-#ifdef HAS_LINKS
-                    if (!light_linked(i, group)) continue;
+                uint first = nd.first_light;
+                // A leaf's lights ascend (light_tree_build.build_cells): point lights,
+                // narrow and other sphere lights, the rest, each part in a loop holding
+                // only its model's code (renderer/light_buffer.by_light_model), compiled
+                // only for the models the scene has (LOOP_*, lighting/base.light_loops).
+                uint k = 0u;
+#ifdef LOOP_POINT
+                for (; k < count; ++k) {
+                    uint i = tree_lights[first + k];
+                    if (i >= u_point_lights) break;
+                    if (!tree_light_reaches(i, s.P, group)) continue;
+                    c += light_radiance_point(lights[i], s);
+                }
 #endif
-                    if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+#ifdef LOOP_SPHERE_NARROW
+                for (; k < count; ++k) {
+                    uint i = tree_lights[first + k];
+                    if (i >= u_sphere_end) break;
+                    if (!tree_light_reaches(i, s.P, group)) continue;
+                    c += light_radiance_sphere_narrow(lights[i], s);
+                }
+#endif
+#ifdef LOOP_SPHERE_WIDE
+                for (; k < count; ++k) {
+                    uint i = tree_lights[first + k];
+                    if (i >= u_wide_sphere_end) break;
+                    if (!tree_light_reaches(i, s.P, group)) continue;
+                    c += light_radiance_sphere_wide(lights[i], s);
+                }
+#endif
+#ifdef LOOP_GENERAL
+                for (; k < count; ++k) {
+                    uint i = tree_lights[first + k];
+                    if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance(lights[i], s);
                 }
+#endif
             }
             ni += 1u;
         } else {

@@ -14,6 +14,8 @@ layout(std430, binding = SSBO_CELL_LISTS) readonly buffer CellLights { uint cell
 uniform ivec2 u_grid;      // tiles along x, y
 uniform int u_tile_px;     // tile side (px)
 uniform uint u_point_lights;  // the first u_point_lights lights have no extent
+uniform uint u_sphere_end;    // from u_point_lights up to u_sphere_end: narrow spheres,
+uniform uint u_wide_sphere_end;  // up to u_wide_sphere_end: the other sphere lights
 #ifdef CLUSTERED
 uniform vec4 u_slices;     // near_split, far, slices, slices / ln(far / near_split)
 
@@ -47,9 +49,14 @@ void main() {
 #endif
     uvec2 h = cell_header[cell];
     // A cell's list is in ascending light order (tiled_cull.comp), and the point
-    // lights come first (u_point_lights, renderer/light_buffer.points_first): the
-    // list's point part runs a loop holding only the point model.
+    // lights come first (u_point_lights), then sphere lights (narrow up to u_sphere_end,
+    // the others up to u_wide_sphere_end; renderer/light_buffer.by_light_model): each
+    // part runs a loop holding only its model's code (light_radiance_point,
+    // light_radiance_sphere_narrow / _wide), the rest the full light_radiance. A loop
+    // is compiled only for the models the scene has (LOOP_* defines,
+    // lighting/base.light_loops; wide spheres fall to the general loop when it is in).
     uint k = 0u;
+#ifdef LOOP_POINT
     for (; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
         if (i >= u_point_lights) break;
@@ -59,6 +66,30 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance_point(lights[i], s);
     }
+#endif
+#ifdef LOOP_SPHERE_NARROW
+    for (; k < h.y; ++k) {  // then the narrow sphere lights (up to u_sphere_end)
+        uint i = cell_lights[h.x + k];
+        if (i >= u_sphere_end) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        c += light_radiance_sphere_narrow(lights[i], s);
+    }
+#endif
+#ifdef LOOP_SPHERE_WIDE
+    for (; k < h.y; ++k) {  // the other sphere lights (up to u_wide_sphere_end)
+        uint i = cell_lights[h.x + k];
+        if (i >= u_wide_sphere_end) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        c += light_radiance_sphere_wide(lights[i], s);
+    }
+#endif
+#ifdef LOOP_GENERAL
     for (; k < h.y; ++k) {
         uint i = cell_lights[h.x + k];
 #ifdef HAS_LINKS
@@ -67,6 +98,7 @@ void main() {
         if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
         c += light_radiance(lights[i], s);
     }
+#endif
     c += emission;
     write_lighting(px, s, c);
 }

@@ -11,6 +11,7 @@ from stagegen import BOX_USDA, USDA_HEADER, camera_usda, ground_usda, usda_stage
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 from stb_hydra.renderer.lighting import available
+from stb_hydra.renderer.lighting.base import light_loops
 from stb_hydra.renderer.records import InViewLights
 
 W, H = 192, 108
@@ -21,9 +22,19 @@ def relmse(a, b, eps=1e-2):
     return float(np.mean((a - b) ** 2 / (b**2 + eps)))
 
 
-def small_lights_scene(n: int, seed: int = 3, ortho: bool = False, spread: float = 9.0) -> str:
+def small_lights_scene(
+    n: int,
+    seed: int = 3,
+    ortho: bool = False,
+    spread: float = 9.0,
+    models: tuple[str, ...] = (),
+) -> str:
     """Ground + box + n lights with short authored ranges (0.6-3 m) 0.2-2 m above the
-    ground, a third of them spots: culling matters (lists are far shorter than n)."""
+    ground, a third of them spots: culling matters (lists are far shorter than n).
+    ``models`` turns some of the 5 cm spheres into other light models (the exact
+    methods' loops by model, issue 34): "point" every 4th light radius 0, "wide" every
+    5th radius 0.4 (never narrow against the ground), "rect" every 6th a 0.4 x 0.1 m
+    RectLight (a spot: facing down; the general loop)."""
     rng = np.random.default_rng(seed)
     s = [
         USDA_HEADER
@@ -44,10 +55,18 @@ def small_lights_scene(n: int, seed: int = 3, ortho: bool = False, spread: float
         )
         api = '"ShapingAPI", "StbLightAPI"' if cone else '"StbLightAPI"'
         order = '"xformOp:translate", "xformOp:rotateX"' if cone else '"xformOp:translate"'
+        kind, size = "SphereLight", "    float inputs:radius = 0.05\n"
+        if "point" in models and i % 4 == 1:
+            size = "    float inputs:radius = 0\n"
+        elif "wide" in models and i % 5 == 2:
+            size = "    float inputs:radius = 0.4\n"
+        elif "rect" in models and i % 6 == 3:
+            kind = "RectLight"
+            size = "    float inputs:width = 0.4\n    float inputs:height = 0.1\n"  # a spot
         s.append(
-            f'def SphereLight "L{i}" (\n    prepend apiSchemas = [{api}]\n)\n{{\n'
+            f'def {kind} "L{i}" (\n    prepend apiSchemas = [{api}]\n)\n{{\n'
             f"    float inputs:intensity = {rng.uniform(2000, 20000):.1f}\n"
-            f"    float inputs:radius = 0.05\n"
+            f"{size}"
             f"    float stb:range = {rng.uniform(0.6, 3.0):.3f}\n"
             f"    color3f inputs:color = ({c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f})\n{extra}"
             f"    double3 xformOp:translate = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})\n"
@@ -106,6 +125,40 @@ def test_uncapped_methods_equal_reference(scene, method, opts):
         assert stats["tree_cells"] > 0
     if opts.get("mode") == "tree":
         assert stats["list_cells"] == 0 and stats["tree_cells"] > 0
+
+
+#: Scenes whose in-view lights fill every light model's loop (issue 34): point, narrow
+#: and wide spheres (no general loop: the wide-sphere loop runs), and the same with rect
+#: lights (the general loop, which then also takes the wide spheres).
+MODEL_SCENES = {
+    "point+spheres": (("point", "wide"), {"point", "sphere_narrow", "sphere_wide"}),
+    "every-model": (("point", "wide", "rect"), {"point", "sphere_narrow", "general"}),
+}
+
+
+@pytest.mark.parametrize("name", list(MODEL_SCENES))
+def test_every_light_model_loop_equals_reference(gl_ctx, name):
+    """With every light model in view, each in its loop (the LOOP_* defines the scene
+    compiles), tiled and clustered equal the reference to the last bit and the light
+    tree to relMSE 1e-4."""
+    models, loops = MODEL_SCENES[name]
+    stage = usda_stage(small_lights_scene(80, seed=7, models=models))
+    eng = Engine(stage, RenderSettings(width=W, height=H, lighting="reference"))
+    try:
+        iv = eng.render_frame().get(InViewLights)
+        ref = eng.aovs["color"][..., :3].copy()
+        parts = (iv.point_count, iv.sphere_count, iv.wide_sphere_count)
+        rest = iv.count - sum(parts)
+        assert min(parts) > 0 and (rest > 0) == ("rect" in models), parts
+        assert light_loops(eng.method.light_models) == loops
+    finally:
+        eng.release()
+    assert ref.max() > 0
+    for method, opts in [("tiled", {"tile_cap": None}), ("clustered", {}), ("lighttree", {})]:
+        img = render(stage, method, **opts)[0]
+        assert relmse(img, ref) <= TOL, method
+        if method != "lighttree":
+            np.testing.assert_array_equal(img, ref)
 
 
 def test_tiled_cap_drops_counts_and_darkens_where_it_dropped(scene):

@@ -4,6 +4,7 @@ traversal against a brute-force interval list, the Listing 2 heuristic, and the
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -100,7 +101,6 @@ def test_node_layout_and_skip_counts(n, leaf, seed):
     order = t.lights.astype(np.int64)
     assert sorted(order.tolist()) == list(range(n))
     centre = 0.5 * (lo + hi)[order]
-    assert np.all(np.diff(centre) >= 0)  # lights in the cell sorted by depth
     k = len(nodes)
     L = (k + 1) // 2
     assert k == 2 * L - 1 and L & (L - 1) == 0
@@ -110,6 +110,14 @@ def test_node_layout_and_skip_counts(n, leaf, seed):
     isleaf, count, skip = unpack_bits(nodes[:, 3].astype(np.uint32))
     assert skip[0] == k
     lo_s, hi_s = lo[order], hi[order]
+    # Leaves in depth order (each leaf's lights nearer than the next leaf's, by centre);
+    # inside a leaf the lights ascend in light index (the shader's loops by light model).
+    leaves = [(int(first[p]), int(count[p])) for p in range(k) if isleaf[p] and count[p]]
+    leaves.sort()
+    for (a, c), (b, d) in itertools.pairwise(leaves):
+        assert centre[a : a + c].max() <= centre[b : b + d].min()
+    for a, c in leaves:
+        assert np.all(np.diff(order[a : a + c]) > 0)
 
     def check(p: int) -> int:
         """Validate the subtree at DFS position p; return its size."""

@@ -123,6 +123,11 @@ ALL_FEATURES = {
     "HAS_SHADOWS": True,
     "STOCHASTIC_PCF": True,
     "LOCAL_LIGHTS": True,
+    # the exact methods' loops by light model (lighting/base.light_loops never compiles
+    # the wide-sphere loop beside the general one; tests/test_baselines compiles it)
+    "LOOP_POINT": True,
+    "LOOP_SPHERE_NARROW": True,
+    "LOOP_GENERAL": True,
     "STB_N": 4,
     "STB_K": 64,
     "STB_PIXEL_TERMS": True,

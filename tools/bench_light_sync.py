@@ -12,6 +12,8 @@ temp .usda first -- generation is not timed), in a fresh process each:
 * ``first_frame``: the first ``render()`` at ``--size`` (sun-only lighting by default:
   the frame's light work is the light buffer, not a light loop), ``ctx.finish()``;
 * ``stage_to_frame``: open + engine + first frame;
+* ``cpu_open_engine``: the process's CPU time over open + engine (less sensitive than
+  wall clock to other jobs on a shared machine; the sync is single-threaded Python);
 * ``edit``: median over ``--edits`` lights of an ``inputs:intensity`` edit through
   ``apply_pending_updates()`` + ``sync_all()``, and how many light-table rows it rewrote
   (must be 1).
@@ -45,10 +47,12 @@ if sys.argv[6] == "single":  # the light-by-light reader (the bulk path never ru
     import stb_hydra.renderer.render_index as _ri
     _ri.MIN_BULK_LIGHTS = 10**12
 t0 = time.perf_counter(); ctx = get_context(); ctx.finish(); t_gl = time.perf_counter() - t0
+c0 = time.process_time()
 t0 = time.perf_counter(); stage = Usd.Stage.Open(path); t_open = time.perf_counter() - t0
 t0 = time.perf_counter()
 eng = Engine(stage, RenderSettings(width=w, height=h, lighting=lighting, shadows=False), ctx=ctx)
 t_engine = time.perf_counter() - t0
+cpu_engine = time.process_time() - c0  # open + engine, CPU seconds of this process
 t0 = time.perf_counter(); eng.render(); ctx.finish(); t_frame = time.perf_counter() - t0
 table = eng.delegate.light_table
 si, ri = eng.scene_index, eng.render_index
@@ -65,6 +69,7 @@ for p in lights:
     rows.append(int(np.count_nonzero(table.cols["version"][: table.n_rows] != v0)))
 print(json.dumps({"lights": len(table.rows), "gl": t_gl, "open": t_open, "engine": t_engine,
                   "first_frame": t_frame, "stage_to_frame": t_open + t_engine + t_frame,
+                  "cpu_open_engine": cpu_engine,
                   "edit_ms": statistics.median(times) * 1e3, "edit_rows": max(rows)}))
 """
 
@@ -109,7 +114,8 @@ def _report(n: int, r: dict) -> None:
         f"{n:>7} lights, {r['reader']}: open {r['open']:.2f} s, engine (populate + sync) "
         f"{r['engine']:.2f} s, first frame {r['first_frame']:.2f} s -> stage to frame "
         f"{r['stage_to_frame']:.2f} s; edit {r['edit_ms']:.2f} ms "
-        f"({r['edit_rows']} row); GL context {r['gl']:.2f} s; load {r['load']}",
+        f"({r['edit_rows']} row); GL context {r['gl']:.2f} s; CPU time of open + engine "
+        f"{r['cpu_open_engine']:.2f} s; load {r['load']}",
         flush=True,
     )
 

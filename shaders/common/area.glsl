@@ -6,7 +6,8 @@
 // sphere's silhouette circle and the cylinder's visible strip (two silhouette lines and
 // the two near half-rims) are polygons of LIM_AREA_POLY_VERTS vertices scaled to keep
 // their area. A sphere or a tube of uniform radiance looks, from P, exactly like the
-// region its silhouette bounds, so the same polygon serves both lobes.
+// region its silhouette bounds, so the same polygon serves both lobes. A sphere's diffuse
+// part is its exact closed-form form factor instead (sphere_form_factor: no polygon).
 // Specular (GGX): linearly transformed cosines (Heitz, Dupuy, Hill & Neubelt 2016): the
 // polygon, in the frame (tangent towards V, bitangent, N), is mapped by the fitted
 // inverse matrix Minv(N.V, alpha) and integrated as a clamped cosine (the same contour
@@ -189,6 +190,56 @@ vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
     return (s.f0 * (nf.x - nf.y) + nf.y) * I;
 }
 
+// Form factor of a sphere of radius r whose centre is at c (relative to P, |c| > r) for a
+// surface of unit normal N, horizon clipped: irradiance / (pi x radiance), in [0, 1].
+// Exact, in closed form (Snyder 1996, "Area light sources for real-time graphics";
+// Lagarde & de Rousiers 2014, "Moving Frostbite to PBR", sphere illuminance): fully above
+// the horizon sin^2(sigma) cos(theta), the point formula; across it the clipped cap.
+float sphere_form_factor(vec3 c, float r, vec3 N) {
+    float d2 = dot(c, c);
+    float s2 = min(r * r / d2, 1.0);        // sin^2 of the angular radius sigma
+    float ct = dot(N, c) * inversesqrt(d2); // cos theta, theta: from N to the centre
+    if (ct * ct >= s2) return ct > 0.0 ? s2 * ct : 0.0;
+    float st = sqrt(max(1.0 - ct * ct, 1e-12));
+    float x = sqrt(max(1.0 / s2 - 1.0, 0.0));  // cot sigma
+    float y = clamp(-x * ct / st, -1.0, 1.0);
+    float sy = st * sqrt(1.0 - y * y);
+    float e = (ct * acos(y) - x * sy) * s2 + atan(sy, x);
+    return clamp(e / PI, 0.0, 1.0);
+}
+
+// light_reflect for a sphere light (L.area.z == AREA_SPHERE) past the point-model test, on
+// a lobe the light is narrow against everywhere (ws == 0): the diffuse part is the
+// sphere's closed-form form factor (no polygon), the specular the point model. Ldir,
+// dist, f: light_falloff's. False inside the sphere.
+bool sphere_reflect_narrow(Light L, Surface s, vec3 Ldir, float dist, float f, vec3 ssp,
+                           out vec3 diff, out vec3 spec) {
+    diff = vec3(0.0); spec = vec3(0.0);
+    float r = L.area.x;
+    if (dist <= r * 1.0001) return false;   // inside: sees the emitter's back faces
+    float window = range_window(dist, L.pos_range.w);
+    vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
+    diff = s.diffuse * Lrad * sphere_form_factor(Ldir * dist, r, s.N);
+    spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    return true;
+}
+
+// sphere_reflect_narrow with the specular blended by ws (area_spec_weight) towards the
+// LTC integral over the sphere's silhouette polygon (built only when ws > 0).
+bool sphere_reflect(Light L, Surface s, vec3 Ldir, float dist, float f, float ws, vec3 ssp,
+                    out vec3 diff, out vec3 spec) {
+    if (!sphere_reflect_narrow(L, s, Ldir, dist, f, ssp, diff, spec)) return false;
+    if (ws > 0.0) {
+        spec *= 1.0 - ws;
+        vec3 v[AREA_MAXV];
+        int n = area_polygon(L, s.P, v);
+        vec3 Lrad = L.intensity.rgb * L.area.w * range_window(dist, L.pos_range.w)
+                  * light_tint_rgb(L, -Ldir);
+        spec += ltc_specular(s, v, n) * Lrad * ws;
+    }
+    return true;
+}
+
 #ifdef HAS_CLEARCOAT
 // light_reflect for a clearcoated surface: the base as there, attenuated by the coat's
 // Fresnel (per VoH for the point model; at NoV, a directional average, for the area
@@ -208,7 +259,9 @@ bool area_reflect_coated(Light L, Surface s, vec3 Ldir, float dist, float f, flo
     if (area && n == 0) return false;
     vec3 Lrad = L.intensity.rgb * L.area.w * range_window(dist, L.pos_range.w)
               * light_tint_rgb(L, -Ldir);
-    vec3 base_d = area ? s.diffuse * Lrad * polygon_form_factor(v, n, s.N) : dsp * E;
+    float F = L.area.z == AREA_SPHERE ? sphere_form_factor(Ldir * dist, L.area.x, s.N)
+                                      : polygon_form_factor(v, n, s.N);
+    vec3 base_d = area ? s.diffuse * Lrad * F : dsp * E;
     vec3 base_s = ssp * E * (1.0 - ws);
     if (ws > 0.0 && n > 0) base_s += ltc_specular(s, v, n) * Lrad * ws;
     vec3 coat = vec3(csp) * E * (1.0 - wc);
@@ -252,13 +305,22 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
         diff = dsp * E; spec = ssp * E;
         return true;
     }
+    // A sphere's diffuse is its closed form (sphere_form_factor), so it needs the
+    // silhouette polygon only for the LTC specular; the other models integrate theirs.
+    // One polygon and one LTC call serve both (each is inlined code: issue 34).
+    bool sphere = L.area.z == AREA_SPHERE;
+    if (sphere && dist <= L.area.x * 1.0001) return false;  // inside: back faces
     vec3 v[AREA_MAXV];
-    int n = area_polygon(L, s.P, v);
-    if (n == 0) return false;
+    int n = 0;
+    if (!sphere || ws > 0.0) {
+        n = area_polygon(L, s.P, v);
+        if (n == 0 && !sphere) return false;
+    }
     float window = range_window(dist, L.pos_range.w);
     // Radiance x focus tint x IES scale (no emission model: the polygon integrates it).
     vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
-    float F = polygon_form_factor(v, n, s.N);
+    float F = sphere ? sphere_form_factor(Ldir * dist, L.area.x, s.N)
+                     : polygon_form_factor(v, n, s.N);
     diff = s.diffuse * Lrad * F;
     // Specular: the point model (the centre's direction, the far-field illuminance) for
     // a light narrow against the lobe, LTC for a wide one.

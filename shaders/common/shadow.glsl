@@ -424,6 +424,46 @@ vec3 light_radiance(Light L, Surface s) {
     return c * local_shadow(L, s.P, s.N);
 }
 
+// light_radiance for a sphere light (L.area.z == AREA_SPHERE: radius > 0, not
+// treatAsPoint) with only the sphere's code: the point model, or the closed-form diffuse
+// and the specular (point model, blended with LTC over the silhouette where the lobe is
+// narrow against the light) -- the same operations as light_reflect's sphere path, so
+// the same value, without the rect / disk / cylinder code. `narrow`: the light is
+// narrow against every lobe it reaches (area_spec_weight is 0 at every receiver:
+// renderer/light_buffer.narrow_spheres), so the LTC code is left out; on llvmpipe a
+// branch's body runs even where no lane takes it. The exact methods loop over their
+// sphere lights with light_radiance_sphere_narrow / light_radiance_sphere_wide.
+vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow) {
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) return light_radiance(L, s);
+#endif
+    vec3 Ldir;
+    float dist;
+    float f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return vec3(0.0);
+    float ws = narrow || L.misc.w == 0.0 ? 0.0 : area_spec_weight(L.area.x, dist, s.alpha);
+    vec3 dsp, ssp, d, sp;
+    brdf_eval(s, Ldir, dsp, ssp);
+    if (!light_is_area(L, dist) && ws <= 0.0) {
+        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+        d = dsp * E;
+        sp = ssp * E;
+    } else if (narrow) {
+        if (!sphere_reflect_narrow(L, s, Ldir, dist, f, ssp, d, sp)) return vec3(0.0);
+    } else if (!sphere_reflect(L, s, Ldir, dist, f, ws, ssp, d, sp)) {
+        return vec3(0.0);
+    }
+    vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
+    if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
+    return c * local_shadow(L, s.P, s.N);
+}
+vec3 light_radiance_sphere_narrow(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, true);
+}
+vec3 light_radiance_sphere_wide(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, false);
+}
+
 // light_radiance for a light without extent (light_half_extent(L) == 0: never an area,
 // no specular LTC weight), with only the point model's code: the same operations as
 // light_reflect's point path, so the same value. The exact methods loop over their

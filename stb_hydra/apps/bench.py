@@ -532,6 +532,7 @@ def bench_one(
         "warmup": warmup,
         **m.summary(),
         **_shadow_summary(m, shadow_budget, shadow_budget_ms),
+        **{k: m.stats.get(k) for k in CELL_FIELDS},
         "stats": m.stats,
         "load_avg": load_before,
         "renderer": renderer,
@@ -588,6 +589,17 @@ def write_text(path: str, text: str) -> None:
         raise CliError(str(exc)) from None
 
 
+#: Per-cell light counts of the cell-list methods (tiled, clustered, lighttree; None
+#: for the others): lights per tile / cluster (mean, median, p95, max, uncapped) and the mean
+#: over the in-view lights -- the share of the reference's light-pixel work kept.
+CELL_FIELDS = (
+    "cell_lights_mean",
+    "cell_lights_p50",
+    "cell_lights_p95",
+    "cell_lights_max",
+    "cell_light_share",
+)
+
 CSV_FIELDS = (
     "method",
     "label",
@@ -604,6 +616,7 @@ CSV_FIELDS = (
     "cpu_ms",
     "cull_upload_ms",
     "accounted_fraction",
+    *CELL_FIELDS,
     "load_avg",
 )
 

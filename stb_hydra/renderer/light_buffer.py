@@ -63,13 +63,68 @@ def points_first(table: LightTable, rows: np.ndarray) -> tuple[np.ndarray, int]:
     that holds only the point model (``light_radiance_point``): on SIMD hardware that
     executes both sides of a branch, a loop body carrying the area code costs it for
     every light (issue 34)."""
+    out, n_point, _thin, _wide = by_light_model(table, rows)
+    return out, n_point
+
+
+def by_light_model(
+    table: LightTable, rows: np.ndarray, narrow: np.ndarray | None = None
+) -> tuple[np.ndarray, int, int, int]:
+    """``rows`` stably partitioned by the light model the exact methods' loops need:
+    lights without extent (``light_radiance_point``), sphere lights ``narrow`` marks
+    (``light_radiance_sphere_narrow``: closed-form diffuse, point specular; see
+    :func:`narrow_spheres`), the other sphere lights (``light_radiance_sphere_wide``:
+    LTC specular where the lobe needs it), then the rest (``light_radiance``), each part
+    in its given order; and the sizes of the first three parts. ``narrow``: a mask over
+    ``rows`` (None: no light is known narrow)."""
     if len(rows) == 0:
-        return rows, 0
+        return rows, 0, 0, 0
     point = half_extent(table, rows) <= 0.0
-    n = int(np.count_nonzero(point))
-    if n == 0 or n == len(rows):
-        return rows, n
-    return np.concatenate([rows[point], rows[~point]]), n
+    sphere = ~point & (table.area_kind[rows] == sc.AREA_SPHERE)
+    thin = sphere & narrow if narrow is not None else np.zeros_like(sphere)
+    wide = sphere & ~thin
+    rest = ~(point | sphere)
+    parts = (point, thin, wide)
+    counts = [int(np.count_nonzero(m)) for m in parts]
+    out = np.concatenate([rows[m] for m in (*parts, rest)])
+    return out, counts[0], counts[1], counts[2]
+
+
+def narrow_spheres(
+    table: LightTable,
+    rows: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    alpha_min: float,
+) -> np.ndarray:
+    """Mask over ``rows``: sphere lights narrow against every specular lobe they can
+    reach, so common/area.glsl's ``area_spec_weight`` is 0 at every receiver and they
+    need no LTC integral: radius / (d_min x alpha_min) below ``limits.AREA_SPEC_POINT``
+    (with a 1e-3 margin for float32), where d_min is the distance (m) from the light's
+    centre to the nearest of the world AABBs ``lo``, ``hi`` ((B, 3), render frame:
+    every receiver lies in one) and ``alpha_min`` the smallest GGX alpha in the scene.
+    A light without specular (multiplier 0) is narrow too."""
+    out = np.zeros(len(rows), dtype=bool)
+    sph = np.nonzero(table.area_kind[rows] == sc.AREA_SPHERE)[0]
+    if len(sph) == 0:
+        return out
+    r = rows[sph]
+    radius = table.area_size[r, 0].astype(np.float64)
+    no_spec = table.specular[r] == 0.0
+    if len(lo) == 0:
+        out[sph] = True  # nothing to light
+        return out
+    d_min = np.full(len(r), np.inf)
+    p = table.position[r]
+    for i in range(0, len(lo), 256):  # (lights x 256 boxes) at a time
+        gap = np.maximum(np.maximum(lo[None, i : i + 256] - p[:, None], 0.0), 0.0)
+        gap = np.maximum(gap, p[:, None] - hi[None, i : i + 256])
+        d_min = np.minimum(d_min, np.sqrt((gap * gap).sum(axis=2)).min(axis=1))
+    bound = limits.AREA_SPEC_POINT * (1.0 - 1e-3) * max(alpha_min, limits.GGX_ALPHA_MIN)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ok = radius < bound * d_min
+    out[sph] = ok | no_spec
+    return out
 
 
 def pack_lights(

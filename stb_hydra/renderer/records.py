@@ -45,12 +45,17 @@ class InViewLights:
     ``rows``: light-table rows (SSBO index i = rows[i]); the feature flags say
     whether any of them has a cone / an IES profile (shader variants);
     ``point_count``: the first ``point_count`` lights have no extent (the exact
-    methods' point-only loop, ``u_point_lights``), 0 when the order is not split."""
+    methods' point-only loop, ``u_point_lights``), 0 when the order is not split;
+    ``sphere_count``: the next ``sphere_count`` are sphere lights narrow against every
+    lobe (their loop ends at ``u_sphere_end`` = point_count + sphere_count), then
+    ``wide_sphere_count`` other sphere lights (up to ``u_wide_sphere_end``)."""
 
     rows: np.ndarray
     has_cones: bool = False
     has_ies: bool = False
     point_count: int = 0
+    sphere_count: int = 0
+    wide_sphere_count: int = 0
 
     @property
     def count(self) -> int:

@@ -72,6 +72,58 @@ READS: tuple[Resource, ...] = (
 
 Warn = Callable[[str], None]
 
+#: The exact methods' light loops by light model (issue 34), in light-buffer order
+#: (``light_buffer.by_light_model``): model -> the define that compiles its loop into
+#: lighting_direct.frag, tiled_lighting.frag and lighttree_lighting.frag.
+LIGHT_LOOP_DEFINES: dict[str, str] = {
+    "point": "LOOP_POINT",
+    "sphere_narrow": "LOOP_SPHERE_NARROW",
+    "sphere_wide": "LOOP_SPHERE_WIDE",
+    "general": "LOOP_GENERAL",
+}
+
+
+def light_models(lights: InViewLights) -> frozenset[str]:
+    """The light models (keys of :data:`LIGHT_LOOP_DEFINES`) with lights in
+    ``lights``, from its partition's counts (``InViewLights.point_count`` ...); lights
+    of a buffer that is not split by model are all ``general``."""
+    n_rest = lights.count - lights.point_count - lights.sphere_count - lights.wide_sphere_count
+    counts = {
+        "point": lights.point_count,
+        "sphere_narrow": lights.sphere_count,
+        "sphere_wide": lights.wide_sphere_count,
+        "general": n_rest,
+    }
+    return frozenset(m for m, c in counts.items() if c > 0)
+
+
+def light_loops(models: frozenset[str], clearcoat: bool = False) -> frozenset[str]:
+    """The loops an exact method's shader holds for lights of ``models``: each loop is
+    inlined light code, and on llvmpipe four of them took a program's cold compile from
+    ~8 s to 20-25 s (issue 34), so a loop is compiled only for a model the scene has,
+    and the cheap loops only where they replace code: a point light takes the point
+    loop, a narrow sphere the narrow loop (point model + closed-form diffuse), the
+    rest the general ``light_radiance``; wide spheres (LTC over the silhouette) have
+    their own loop only where there is no general loop, else they run in it (it
+    handles every model with the same value, and the light order puts them just
+    before the rest). With a clearcoat (``HAS_CLEARCOAT``) the sphere loops would
+    inline the whole coated ``light_radiance`` again, so every sphere runs in the
+    general loop. Every model in ``models`` is covered by one loop."""
+    loops = set()
+    if "point" in models:
+        loops.add("point")
+    spheres = models & {"sphere_narrow", "sphere_wide"}
+    if clearcoat and spheres:
+        loops.add("general")
+    elif "sphere_narrow" in models:
+        loops.add("sphere_narrow")
+    if "general" in models:
+        loops.add("general")
+    elif "sphere_wide" in models and "general" not in loops:
+        loops.add("sphere_wide")
+    return frozenset(loops)
+
+
 #: What the lighting pass also writes for the temporal pass (``--temporal taa``;
 #: ``shaders/common/lighting_out.glsl``): lighting / albedo + linear depth (m), and
 #: albedo + the lighting's alpha.
@@ -94,8 +146,11 @@ class LightingMethod:
     hiz_level: int = 0
     #: The lighting pass also writes ``TAA_INPUTS`` (set by the lighting task).
     taa_inputs: bool = False
-    #: The method's light loop has a point-only part: in-view lights are ordered point
-    #: lights first and ``u_point_lights`` says how many (``InViewLights.point_count``).
+    #: The method's light loop has point-only and sphere-only parts: in-view lights are
+    #: ordered point lights, narrow sphere lights, other sphere lights, the rest;
+    #: ``u_point_lights``, ``u_sphere_end`` and ``u_wide_sphere_end`` say where the parts
+    #: end (``InViewLights``, ``light_buffer.by_light_model``); each part's loop is
+    #: compiled only for the models seen (``LOOP_*`` defines, :func:`light_loops`).
     points_first: ClassVar[bool] = False
     #: Area-light penumbrae rotate their point set per integrated frame
     #: (``AREA_SHADOW_PER_FRAME`` + ``AREA_SHADOW_SEQUENCE``, common/shadow.glsl; by
@@ -117,6 +172,11 @@ class LightingMethod:
         self.o: dict[str, Any] = self.validate_options(options)
         #: The textured dome's sky occlusion maps (made on first use).
         self._sky: SkyOcclusion | None = None
+        #: Light models seen in view since the method was made (``points_first``
+        #: methods): their loops stay compiled in, so a model that comes and goes (a
+        #: light moving in and out of view, a sphere turning narrow or wide) costs one
+        #: program build, not one a frame (:meth:`scene_defines`).
+        self.light_models: frozenset[str] = frozenset()
 
     # -- the contract --
     @classmethod
@@ -182,6 +242,10 @@ class LightingMethod:
                 defines["HAS_IES"] = True
             if lights.has_cones:
                 defines["HAS_CONES"] = True
+            if self.points_first:
+                self.light_models |= light_models(lights)
+                for m in light_loops(self.light_models, self.clearcoat):
+                    defines[LIGHT_LOOP_DEFINES[m]] = True
             if frame.get(LightBuffer).has_shadows:
                 defines["HAS_SHADOWS"] = True
                 if frame.settings.shadow_filter == "stochastic":
@@ -203,8 +267,12 @@ class LightingMethod:
                 unit += 1
         if "u_area_shadow_index" in prog:  # AREA_SHADOW_SEQUENCE (common/shadow.glsl)
             set_uniform(prog, "u_area_shadow_index", float(frame.sample_index))
-        if "u_point_lights" in prog:
-            set_uniform(prog, "u_point_lights", frame.get(InViewLights).point_count)
+        if self.points_first:  # where each loop by light model ends (its LOOP_* define)
+            iv = frame.get(InViewLights)
+            end = iv.point_count + iv.sphere_count
+            set_uniform(prog, "u_point_lights", iv.point_count)
+            set_uniform(prog, "u_sphere_end", end)
+            set_uniform(prog, "u_wide_sphere_end", end + iv.wide_sphere_count)
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)

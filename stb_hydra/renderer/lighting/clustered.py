@@ -48,10 +48,12 @@ from .tiled import (
     BIND_HEADERS,
     BIND_LISTS,
     SSBOPool,
+    cell_count_stats,
     cull_uniforms,
     light_ssbo,
     parse_cap,
     read_stats,
+    read_totals,
     shade_direct,
 )
 
@@ -192,6 +194,7 @@ class ClusteredLighting(LightingMethod):
             frame.stats["dropped_lights"] = int(L.dropped)
             frame.stats["list_entries"] = int(L.entries)
             frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
+            frame.stats.update(cell_count_stats(L.total, frame.light_count))
         else:
             headers, lists = self._assign_gpu(frame, grid, self.pool)
 
@@ -206,6 +209,7 @@ class ClusteredLighting(LightingMethod):
             frame.stats.update(
                 {k: v for k, v in read_stats(self._stats).items() if k != "cells_over_cap"}
             )
+            frame.stats.update(cell_count_stats(read_totals(self._stats, C), frame.light_count))
         frame.stats["clusters"] = C
         frame.stats["cluster_depth_range"] = [grid.near_split, grid.far]
 

@@ -41,7 +41,14 @@ from .light_tree_build import (
     choose_trees,
 )
 from .options import Opt, Schema
-from .tiled import BIND_EXTRA, BIND_HEADERS, BIND_LISTS, SSBOPool, shade_direct
+from .tiled import (
+    BIND_EXTRA,
+    BIND_HEADERS,
+    BIND_LISTS,
+    SSBOPool,
+    cell_count_stats,
+    shade_direct,
+)
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
@@ -67,6 +74,7 @@ OPTIONS = GRID_OPTIONS + Schema(
 
 class LightTreeLighting(LightingMethod):
     name = "lighttree"
+    points_first = True
     options = OPTIONS
     area_shadows_per_frame = True
 
@@ -121,6 +129,7 @@ class LightTreeLighting(LightingMethod):
         frame.stats["tree_nodes"] = len(trees.node_min)
         frame.stats["list_entries"] = lists.entries
         frame.stats["max_cell_lights"] = int(lists.total.max()) if C else 0
+        frame.stats.update(cell_count_stats(lists.total, frame.light_count))
         frame.stats["dropped_lights"] = int(lists.dropped)
 
     def execute(self, frame: FrameContext) -> None:

@@ -526,6 +526,10 @@ def build_cells(
         n_min[at], n_max[at], n_first[at] = mn, mx, lists.offset[lc]
         n_bits[at] = pack_bits(np.ones(len(lc), np.int64), cnt[lc], np.ones(len(lc), np.int64))
 
+    # Leaf boundaries (list starts), for the ascending order inside each leaf below.
+    marks = np.zeros(len(lists.light) + 1, dtype=np.int64)
+    marks[lists.offset[cnt > 0]] = 1
+
     # trees, grouped by leaf count
     tc = np.nonzero(is_tree)[0]
     for L in np.unique(leaves[tc]):
@@ -535,6 +539,7 @@ def build_cells(
         j = np.arange(L + 1, dtype=np.int64)
         bnd = lists.offset[g][:, None] + (j[None, :] * cnt[g][:, None]) // L
         lf, lcnt = bnd[:, :-1], np.diff(bnd, axis=1)
+        marks[lf.ravel()] = 1
         lmin, lmax = _segment_minmax(lo, hi, lf, lcnt)
         H = 2 * L - 1
         hmin = np.empty((m, H))
@@ -567,6 +572,11 @@ def build_cells(
             np.broadcast_to(skip, (m, H)).ravel(),
         )
 
+    # Each leaf's lights in ascending light-buffer order (a leaf evaluates all of them,
+    # in any order): the shader's leaf loop then runs the point, sphere and other lights
+    # in parts, each with only its model's code, like tiled and clustered (issue 34).
+    seg = np.cumsum(marks[:-1])
+    order = np.lexsort((lists.light, seg))
     return PackedTrees(
         first_node.astype(np.uint32),
         nodes.astype(np.uint32),
@@ -574,7 +584,7 @@ def build_cells(
         _f32_up(n_max),
         n_first.astype(np.uint32),
         n_bits,
-        lists.light.astype(np.uint32),
+        np.asarray(lists.light)[order].astype(np.uint32),
         is_tree,
     )
 

@@ -136,6 +136,31 @@ def read_stats(buf: moderngl.Buffer) -> dict[str, int]:
     }
 
 
+def read_totals(buf: moderngl.Buffer, cells: int) -> np.ndarray:
+    """Uncapped light count per cell (tile / cluster) the GPU assignment wrote after the
+    four counters of ``read_stats``."""
+    raw = buf.read(size=4 * cells, offset=16)
+    return np.frombuffer(raw, dtype=np.uint32).astype(np.int64)
+
+
+def cell_count_stats(totals: np.ndarray, fov_lights: int) -> dict[str, float]:
+    """Per-cell light counts as bench numbers (``frame.stats``): mean, median, p95 and
+    max lights per tile / cluster (uncapped), and ``cell_light_share``: the mean count
+    over the in-view lights -- the fraction of the brute-force (reference) light-pixel
+    work a cell-list method keeps, 1 when culling culls nothing."""
+    t = np.asarray(totals, dtype=np.float64).reshape(-1)
+    if t.size == 0:
+        return {}
+    mean = float(t.mean())
+    return {
+        "cell_lights_mean": round(mean, 3),
+        "cell_lights_p50": float(np.percentile(t, 50)),
+        "cell_lights_p95": float(np.percentile(t, 95)),
+        "cell_lights_max": int(t.max()),
+        "cell_light_share": round(mean / fov_lights, 5) if fov_lights > 0 else 0.0,
+    }
+
+
 class TiledLighting(LightingMethod):
     name = "tiled"
     points_first = True
@@ -220,6 +245,7 @@ class TiledLighting(LightingMethod):
             frame.stats["tiles_over_cap"] = s["cells_over_cap"]
             frame.stats["max_tile_lights"] = s["max_cell_lights"]
             frame.stats["list_entries"] = s["list_entries"]
+            frame.stats.update(cell_count_stats(read_totals(stats, tiles), frame.light_count))
 
     def tile_totals(self) -> np.ndarray:
         """(tiles_y, tiles_x) uncapped light count per tile of the last frame (GL rows:
