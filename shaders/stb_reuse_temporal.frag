@@ -7,6 +7,12 @@
 //   (select=quad/pixel/ris: N independent picks, each a whole estimate, so 1/N of the
 //   sum: u_init_scale). Resampled by the per-pixel target p (common/reuse_target.glsl):
 //   w_j = p(y_j) W_j x scale, W = sum w / p(y). Confidence M = 1.
+// * STB_REUSE_BIGTILE (-o reuse_candidates=C > 0): instead, C of the big tile's K
+//   reservoirs, drawn straight from u_bigtile with this pixel's own target (no small-tile
+//   pass): the pixel picks its big tile by stochastic bilinear selection (its centre
+//   jittered by up to one big tile), then the slots o, o + s, ..., s = K / C apart, o
+//   uniform in [0, s) -- a random stratum of the K streams, each kept slot standing for
+//   s of them (x s: unbiased, the K streams partition the lights).
 // * Temporal reuse: the previous frame's reservoir at this surface's previous pixel
 //   (the G-buffer's motion vectors minus this frame's jitter, nearest texel), kept only
 //   when that texel saw the same surface (its stored depth matches this point's depth in
@@ -30,7 +36,16 @@
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
 
+#ifdef STB_REUSE_BIGTILE
+uniform usampler2D u_bigtile;    // r32ui big-tile reservoirs, u_block texels per big tile
+uniform ivec2 u_block;           // slot block per big tile (K = x * y)
+uniform int u_big_px;            // big tile side (px)
+uniform ivec2 u_big_tiles;       // big-tile grid size
+uniform int u_stochastic_bilinear;
+uniform float u_weight_cap;      // W <= cap x s x count x W_bt(selected); <= 0: no cap
+#else
 uniform usampler2D u_smalltile;  // rgba32ui small-tile samples
+#endif
 uniform sampler2D u_motion;      // g_motion: current (jittered) - previous (unjittered) px
 uniform usampler2D u_prev_res;   // last frame's reservoirs (reservoir_pack)
 uniform sampler2D u_prev_geo;    // last frame's depth (m), oct normal, roughness
@@ -62,13 +77,50 @@ void main() {
     uint group = 0u;
 #endif
     Rng rng = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
-    ivec2 st; int slot;
-    quad_owner(px, st, slot);
-    uvec4 smp = texelFetch(u_smalltile, st, 0);
     // The initial resampling may weight its candidates by a cheap visibility as well
     // (one hard shadow gather, u_shadow_floor < 1): its own reservoir (y0, W0 = sum w /
     // p_init(y0)) is then combined with the history below under the common target p.
     Stream ini = stream_empty();
+#ifdef STB_REUSE_BIGTILE
+    vec2 c = gl_FragCoord.xy;
+    if (u_stochastic_bilinear == 1) {
+        c += (vec2(rng_float(rng), rng_float(rng)) - 0.5) * float(u_big_px);
+    }
+    ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
+    const int STRIDE = STB_K / STB_REUSE_BIGTILE;  // s: slots each kept one stands for
+    int o = min(int(rng_float(rng) * float(STRIDE)), STRIDE - 1);
+    float count = 0.0;
+    float sel_wbt = 0.0;
+    for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
+        int slot = o + j * STRIDE;
+        uint smp = texelFetch(u_bigtile, bt * u_block + ivec2(slot % u_block.x, slot / u_block.x), 0).r;
+        uint li = sample_index(smp);
+        float Wj = sample_weight(smp);
+        if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
+        count += 1.0;
+        float p = reuse_target(li, s, group);
+        if (u_shadow_floor < 1.0 && p > 0.0) {
+            float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
+            p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
+        }
+        float w = p * Wj * float(STRIDE);
+        float u = rng_float(rng);
+        if (!(w > 0.0) || isinf(w)) continue;
+        ini.wsum += w;
+        if (u * ini.wsum < w) {  // stream_add, remembering the pick's W_bt for the cap
+            ini.y = li;
+            ini.py = p;
+            sel_wbt = Wj;
+        }
+    }
+    Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
+    if (u_weight_cap > 0.0 && r0.y != LIM_EMPTY_LIGHT_INDEX) {
+        r0.W = min(r0.W, u_weight_cap * float(STRIDE) * count * sel_wbt);
+    }
+#else
+    ivec2 st; int slot;
+    quad_owner(px, st, slot);
+    uvec4 smp = texelFetch(u_smalltile, st, 0);
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float Wj = sample_weight(smp[j]);
@@ -81,6 +133,7 @@ void main() {
         stream_add(ini, li, p, p * Wj * u_init_scale, rng_float(rng));
     }
     Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
+#endif
     Stream str = stream_empty();
     float M = 1.0;
     if (r0.y != LIM_EMPTY_LIGHT_INDEX) {

@@ -82,6 +82,11 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({"reuse_temporal": "on"}, 6e-3),  # frames correlated by the history: slower
         ({"reuse_k": 0}, 3e-3),  # the per-pixel resampling of the N candidates alone
         ({"reuse_mis": "pairwise"}, 3e-3),  # pairwise MIS: also unbiased, 2k + 1 targets
+        # Candidates straight from the big tile (a random stratum of 16 of its K = 64
+        # reservoirs per pixel, no small-tile pass), with and without spatial reuse.
+        ({"reuse_candidates": 16}, 3e-3),
+        ({"reuse_candidates": 16, "reuse_k": 0, "reuse_mis": "pairwise"}, 3e-3),
+        ({"reuse_candidates": 64, "reuse_k": 0}, 3e-3),
     ],
 )
 def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):

@@ -231,11 +231,17 @@ class ReuseStage:
         lut_inv, lut_fwd = luts
 
         # 1. initial candidates + temporal reuse
-        prog = program(frame, "stb_reuse_temporal.frag", defines)
+        n_cand = int(o["reuse_candidates"])
+        tdefines = dict(defines, STB_REUSE_BIGTILE=n_cand) if n_cand else defines
+        prog = program(frame, "stb_reuse_temporal.frag", tdefines)
         method._common_uniforms(frame, prog)
+        if n_cand:
+            w, h = bufs.size
+            set_uniform(prog, "u_big_tiles", method.grid(w, h)["big_tiles"])
+            set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
         unit = method.bind_common(frame, prog)
         for name, tex in (
-            ("u_smalltile", small),
+            ("u_smalltile" if not n_cand else "u_bigtile", small),
             ("u_quad_lut", lut_inv),
             ("u_quad_fwd", lut_fwd),
             ("u_motion", bufs.textures["g_motion"]),
