@@ -41,6 +41,17 @@ layout(rgba32f, binding = IMAGE_UNIT_REUSE_SURFACE) writeonly uniform image2D u_
 
 const int NMAX = LIM_REUSE_K_MAX + 1;
 
+// This frame's reservoir of pixel px: its own, or its quad's (STB_REUSE_QUAD: resampled
+// at one pixel of the quad; its neighbours' MIS targets are then evaluated at the
+// neighbour pixels, not at the pixels that resampled them -- exact for reuse_k = 0).
+ivec2 reuse_texel(ivec2 px) {
+#ifdef STB_REUSE_QUAD
+    return px / 2;
+#else
+    return px;
+#endif
+}
+
 // Shadow x cone x normalised IES of light L at P (stb_shadow.frag's sample_term).
 float reuse_term(Light L, vec3 P, vec3 N) {
     vec3 Ldir = normalize(L.pos_range.xyz - P);
@@ -69,7 +80,7 @@ void main() {
     Reservoir res[NMAX];
     Surface srf[NMAX];
     uint grp[NMAX];
-    res[0] = reservoir_unpack(texelFetch(u_reuse, px, 0));
+    res[0] = reservoir_unpack(texelFetch(u_reuse, reuse_texel(px), 0));
     srf[0] = s;
     grp[0] = group;
     int n = 1;
@@ -78,12 +89,12 @@ void main() {
         float r = u_radius * sqrt(rng_float(rng));
         float a = 2.0 * PI * rng_float(rng);
         ivec2 q = px + ivec2(floor(r * vec2(cos(a), sin(a)) + 0.5));
-        if (q == px || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution.xy)))) continue;
+        if (reuse_texel(q) == reuse_texel(px) || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution.xy)))) continue;
         Surface sq;
         if (!read_surface(q, sq)) continue;
         float dq = texelFetch(g_depth, q, 0).r;
         if (!reuse_similar(depth, s.N, s.roughness, dq, sq.N, sq.roughness)) continue;
-        res[n] = reservoir_unpack(texelFetch(u_reuse, q, 0));
+        res[n] = reservoir_unpack(texelFetch(u_reuse, reuse_texel(q), 0));
         srf[n] = sq;
 #ifdef HAS_LINKS
         grp[n] = link_group(q);

@@ -13,6 +13,11 @@
 //   jittered by up to one big tile), then the slots o, o + s, ..., s = K / C apart, o
 //   uniform in [0, s) -- a random stratum of the K streams, each kept slot standing for
 //   s of them (x s: unbiased, the K streams partition the lights).
+// * STB_REUSE_QUAD (-o reuse_res=quad, with STB_REUSE_BIGTILE): one reservoir per 2x2
+//   quad (this pass runs at half resolution), resampled at a random pixel of the quad
+//   with that pixel's target + a defensive floor (LIM_REUSE_QUAD_FLOOR x the candidates'
+//   mean target, > 0 for every light), so its W is an unbiased contribution weight for
+//   all four pixels, which shade it with their own f: a quarter of the targets.
 // * Temporal reuse: the previous frame's reservoir at this surface's previous pixel
 //   (the G-buffer's motion vectors minus this frame's jitter, nearest texel), kept only
 //   when that texel saw the same surface (its stored depth matches this point's depth in
@@ -65,12 +70,36 @@ layout(std430, binding = SSBO_STB_REUSE_REMAP) readonly buffer ReuseRemap { int 
 layout(location = 0) out uvec4 o_reservoir;
 
 void main() {
+#ifdef STB_REUSE_QUAD
+    // One reservoir per 2x2 quad, resampled at one of its pixels (a random one per quad
+    // and frame; background pixels skipped) and shaded at all four (see the top).
+    ivec2 qd = ivec2(gl_FragCoord.xy);
+    Rng rq = rng_init(uint(qd.y) * 8192u + uint(qd.x) + 0x74000000u, u_counts.y);
+    int k0 = int(rng_next(rq) >> 30);
+    ivec2 px = 2 * qd;
+    Surface s;
+    bool found = false;
+    for (int i = 0; i < 4 && !found; ++i) {
+        int k = (k0 + i) & 3;
+        ivec2 p = 2 * qd + ivec2(k & 1, k >> 1);
+        if (all(lessThan(p, ivec2(u_resolution.xy))) && read_surface(p, s)) {
+            px = p;
+            found = true;
+        }
+    }
+    if (!found) {
+        o_reservoir = reservoir_pack(reservoir_empty());
+        return;
+    }
+#else
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
     if (!read_surface(px, s)) {
         o_reservoir = reservoir_pack(reservoir_empty());
         return;
     }
+#endif
+    vec2 fc = vec2(px) + 0.5;  // the pixel's centre (px)
 #ifdef HAS_LINKS
     uint group = link_group(px);
 #else
@@ -81,8 +110,9 @@ void main() {
     // (one hard shadow gather, u_shadow_floor < 1): its own reservoir (y0, W0 = sum w /
     // p_init(y0)) is then combined with the history below under the common target p.
     Stream ini = stream_empty();
+    float pfloor = 0.0;  // added to every target of this pass (STB_REUSE_QUAD only)
 #ifdef STB_REUSE_BIGTILE
-    vec2 c = gl_FragCoord.xy;
+    vec2 c = fc;
     if (u_stochastic_bilinear == 1) {
         c += (vec2(rng_float(rng), rng_float(rng)) - 0.5) * float(u_big_px);
     }
@@ -90,19 +120,39 @@ void main() {
     const int STRIDE = STB_K / STB_REUSE_BIGTILE;  // s: slots each kept one stands for
     int o = min(int(rng_float(rng) * float(STRIDE)), STRIDE - 1);
     float count = 0.0;
-    float sel_wbt = 0.0;
+    float psum = 0.0;
+    uint cl[STB_REUSE_BIGTILE];
+    float cw[STB_REUSE_BIGTILE];
+    float cp[STB_REUSE_BIGTILE];
     for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
         int slot = o + j * STRIDE;
         uint smp = texelFetch(u_bigtile, bt * u_block + ivec2(slot % u_block.x, slot / u_block.x), 0).r;
-        uint li = sample_index(smp);
-        float Wj = sample_weight(smp);
-        if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
+        cl[j] = sample_index(smp);
+        cw[j] = sample_weight(smp);
+        cp[j] = 0.0;
+        if (cl[j] == LIM_EMPTY_LIGHT_INDEX || !(cw[j] > 0.0)) continue;
         count += 1.0;
-        float p = reuse_target(li, s, group);
+        float p = reuse_target(cl[j], s, group);
         if (u_shadow_floor < 1.0 && p > 0.0) {
-            float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
+            float v = luminance(local_shadow_hard(lights[cl[j]], s.P, s.N));
             p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
         }
+        cp[j] = p;
+        psum += p;
+    }
+#ifdef STB_REUSE_QUAD
+    // Defensive floor: the quad's other pixels shade this reservoir too, so its target
+    // must be > 0 wherever theirs may be (W is then an unbiased contribution weight for
+    // every pixel of the quad): + LIM_REUSE_QUAD_FLOOR x the candidates' mean target
+    // (1 where no candidate reaches this pixel: uniform).
+    pfloor = psum > 0.0 ? LIM_REUSE_QUAD_FLOOR * psum / max(count, 1.0) : 1.0;
+#endif
+    float sel_wbt = 0.0;
+    for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
+        uint li = cl[j];
+        float Wj = cw[j];
+        if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
+        float p = cp[j] + pfloor;
         float w = p * Wj * float(STRIDE);
         float u = rng_float(rng);
         if (!(w > 0.0) || isinf(w)) continue;
@@ -137,12 +187,12 @@ void main() {
     Stream str = stream_empty();
     float M = 1.0;
     if (r0.y != LIM_EMPTY_LIGHT_INDEX) {
-        float p0 = reuse_target(r0.y, s, group);
+        float p0 = reuse_target(r0.y, s, group) + pfloor;
         stream_add(str, r0.y, p0, p0 * r0.W, rng_float(rng));  // M0 = 1
     }
     if (u_history == 1) {
         vec2 mv = texelFetch(u_motion, px, 0).xy - u_jitter;
-        ivec2 q = ivec2(floor(gl_FragCoord.xy - mv));
+        ivec2 q = ivec2(floor(fc - mv));
         if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, ivec2(u_resolution.xy)))) {
             vec4 g = texelFetch(u_prev_geo, q, 0);
             float prev_d = max(-(u_prev_view * vec4(s.P, 1.0)).z, 1e-6);
@@ -159,7 +209,7 @@ void main() {
                         Mh = min(Mh, u_change_caps[i]);
                     }
                 }
-                float p = reuse_target(li, s, group);
+                float p = reuse_target(li, s, group) + pfloor;
                 if (Mh > 0.0) {
                     stream_add(str, li, p, p * h.W * Mh, rng_float(rng));
                     M += Mh;

@@ -87,6 +87,8 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({"reuse_candidates": 16}, 3e-3),
         ({"reuse_candidates": 16, "reuse_k": 0, "reuse_mis": "pairwise"}, 3e-3),
         ({"reuse_candidates": 64, "reuse_k": 0}, 3e-3),
+        # One reservoir per 2x2 quad (its defensive floor): unbiased at all four pixels.
+        ({"reuse_candidates": 16, "reuse_k": 0, "reuse_res": "quad"}, 3e-3),
     ],
 )
 def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):

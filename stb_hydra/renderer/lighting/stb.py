@@ -206,6 +206,14 @@ OPTIONS = Schema(
         "pixel's own target, no small-tile pass",
     ),
     Opt(
+        "reuse_res",
+        str,
+        "pixel",
+        choices=("pixel", "quad"),
+        doc="reuse: initial reservoirs per pixel or per 2x2 quad (resampled at one of its "
+        "pixels with a defensive floor, shaded at all four; needs reuse_candidates > 0)",
+    ),
+    Opt(
         "reuse_shadow_floor",
         float,
         1.0,
@@ -243,6 +251,8 @@ class StbLighting(LightingMethod):
         c = int(o["reuse_candidates"])
         if c and (c > int(o["K"]) or int(o["K"]) % c):
             raise OptionError("stb option reuse_candidates: must divide K")
+        if o["reuse_res"] == "quad" and not c:
+            raise OptionError("stb option reuse_res=quad: needs reuse_candidates > 0")
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
 

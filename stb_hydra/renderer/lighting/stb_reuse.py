@@ -220,7 +220,9 @@ class ReuseStage:
         frame.stats["stb_reuse_reset"] = reason
         history = 0 if reason or not temporal_reuse(o["reuse_temporal"], frame) else 1
         src, dst = self._parity, 1 - self._parity
-        cur = bufs.texture(CURRENT, 4, "u4")
+        w, h = bufs.size
+        quad = o["reuse_res"] == "quad"  # one reservoir per 2x2 quad (both passes read it)
+        cur = bufs.texture(CURRENT, 4, "u4", size=((w + 1) // 2, (h + 1) // 2) if quad else None)
         h_src = bufs.texture(HISTORY[src], 4, "u4")
         h_dst = bufs.texture(HISTORY[dst], 4, "u4")
         g_src = bufs.texture(SURFACE[src], 4, "f4")
@@ -232,11 +234,13 @@ class ReuseStage:
 
         # 1. initial candidates + temporal reuse
         n_cand = int(o["reuse_candidates"])
-        tdefines = dict(defines, STB_REUSE_BIGTILE=n_cand) if n_cand else defines
+        tdefines = dict(defines, STB_REUSE_BIGTILE=n_cand) if n_cand else dict(defines)
+        if quad:
+            tdefines["STB_REUSE_QUAD"] = True
+            defines = dict(defines, STB_REUSE_QUAD=True)
         prog = program(frame, "stb_reuse_temporal.frag", tdefines)
         method._common_uniforms(frame, prog)
         if n_cand:
-            w, h = bufs.size
             set_uniform(prog, "u_big_tiles", method.grid(w, h)["big_tiles"])
             set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
         unit = method.bind_common(frame, prog)
@@ -259,7 +263,7 @@ class ReuseStage:
         set_uniform(prog, "u_init_scale", 1.0 / int(o["N"]) if one else 1.0)
         set_uniform(prog, "u_eps", float(o["eps"]))
         set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
-        method._pass(frame, prog, [CURRENT], bufs.size)
+        method._pass(frame, prog, [CURRENT], cur.size)
 
         # 2. spatial reuse, visibility, shading, history
         prog = program(frame, "stb_reuse_shade.frag", method.lighting_defines(frame, defines))
