@@ -14,6 +14,10 @@
 //   as the term pass computes it, at full resolution): the target is unshadowed, so
 //   shadowed candidates are shaded with their zero term and add nothing.
 // * Shading: sun, ambient and emission as stb_lighting.frag, plus f(y) x W.
+// * STB_REUSE_FUSED (reuse_candidates > 0, pixel resolution, k = 0, no temporal reuse
+//   this frame): the pass computes the pixel's initial reservoir itself
+//   (common/reuse_initial.glsl) instead of reading the temporal pass's: one full-screen
+//   pass and one G-buffer read fewer, the same estimate.
 // * History: the final reservoir and this pixel's surface go to the image units read
 //   by the next frame's temporal pass. u_vis_reuse = 1 stores a reservoir whose light
 //   is fully shadowed here as empty (ReSTIR's visibility reuse: less noise in shadow,
@@ -29,6 +33,9 @@
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
 #include "common/lighting_out.glsl"
+#ifdef STB_REUSE_FUSED
+#include "common/reuse_initial.glsl"
+#endif
 
 uniform usampler2D u_reuse;  // this frame's reservoirs after temporal reuse
 uniform int u_k;             // spatial neighbours (0 .. LIM_REUSE_K_MAX)
@@ -80,7 +87,15 @@ void main() {
     Reservoir res[NMAX];
     Surface srf[NMAX];
     uint grp[NMAX];
+#ifdef STB_REUSE_FUSED
+    {
+        Rng ri = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
+        float pfloor;
+        res[0] = reuse_initial_bigtile(vec2(px) + 0.5, s, group, ri, pfloor);
+    }
+#else
     res[0] = reservoir_unpack(texelFetch(u_reuse, reuse_texel(px), 0));
+#endif
     srf[0] = s;
     grp[0] = group;
     int n = 1;

@@ -8,11 +8,8 @@
 //   sum: u_init_scale). Resampled by the per-pixel target p (common/reuse_target.glsl):
 //   w_j = p(y_j) W_j x scale, W = sum w / p(y). Confidence M = 1.
 // * STB_REUSE_BIGTILE (-o reuse_candidates=C > 0): instead, C of the big tile's K
-//   reservoirs, drawn straight from u_bigtile with this pixel's own target (no small-tile
-//   pass): the pixel picks its big tile by stochastic bilinear selection (its centre
-//   jittered by up to one big tile), then the slots o, o + s, ..., s = K / C apart, o
-//   uniform in [0, s) -- a random stratum of the K streams, each kept slot standing for
-//   s of them (x s: unbiased, the K streams partition the lights).
+//   reservoirs resampled with this pixel's own target, no small-tile pass
+//   (common/reuse_initial.glsl).
 // * STB_REUSE_QUAD (-o reuse_res=quad, with STB_REUSE_BIGTILE): one reservoir per 2x2
 //   quad (this pass runs at half resolution), resampled at a random pixel of the quad
 //   with that pixel's target + a defensive floor (LIM_REUSE_QUAD_FLOOR x the candidates'
@@ -42,12 +39,7 @@
 #include "common/reuse_geometry.glsl"
 
 #ifdef STB_REUSE_BIGTILE
-uniform usampler2D u_bigtile;    // r32ui big-tile reservoirs, u_block texels per big tile
-uniform ivec2 u_block;           // slot block per big tile (K = x * y)
-uniform int u_big_px;            // big tile side (px)
-uniform ivec2 u_big_tiles;       // big-tile grid size
-uniform int u_stochastic_bilinear;
-uniform float u_weight_cap;      // W <= cap x s x count x W_bt(selected); <= 0: no cap
+#include "common/reuse_initial.glsl"
 #else
 uniform usampler2D u_smalltile;  // rgba32ui small-tile samples
 #endif
@@ -60,7 +52,9 @@ uniform int u_history;           // 1: the previous frame's reservoirs are usabl
 uniform int u_remap;             // 1: FoV indices changed since the last frame
 uniform float u_m_cap;           // history confidence cap
 uniform float u_init_scale;      // 1 (streams) or 1/N (independent picks)
+#ifndef STB_REUSE_BIGTILE  // else declared by common/reuse_initial.glsl
 uniform float u_shadow_floor;    // < 1: the initial resampling's target x (floor + (1 - floor) V)
+#endif
 uniform int u_changes;           // lights changed since the last frame (<= LIM_REUSE_MAX_CHANGES)
 uniform vec4 u_change_spheres[LIM_REUSE_MAX_CHANGES];  // their influence: centre xyz, radius (m)
 uniform float u_change_caps[LIM_REUSE_MAX_CHANGES];    // history confidence cap inside
@@ -109,65 +103,11 @@ void main() {
     // The initial resampling may weight its candidates by a cheap visibility as well
     // (one hard shadow gather, u_shadow_floor < 1): its own reservoir (y0, W0 = sum w /
     // p_init(y0)) is then combined with the history below under the common target p.
-    Stream ini = stream_empty();
     float pfloor = 0.0;  // added to every target of this pass (STB_REUSE_QUAD only)
 #ifdef STB_REUSE_BIGTILE
-    vec2 c = fc;
-    if (u_stochastic_bilinear == 1) {
-        c += (vec2(rng_float(rng), rng_float(rng)) - 0.5) * float(u_big_px);
-    }
-    ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
-    const int STRIDE = STB_K / STB_REUSE_BIGTILE;  // s: slots each kept one stands for
-    int o = min(int(rng_float(rng) * float(STRIDE)), STRIDE - 1);
-    float count = 0.0;
-    float psum = 0.0;
-    uint cl[STB_REUSE_BIGTILE];
-    float cw[STB_REUSE_BIGTILE];
-    float cp[STB_REUSE_BIGTILE];
-    for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
-        int slot = o + j * STRIDE;
-        uint smp = texelFetch(u_bigtile, bt * u_block + ivec2(slot % u_block.x, slot / u_block.x), 0).r;
-        cl[j] = sample_index(smp);
-        cw[j] = sample_weight(smp);
-        cp[j] = 0.0;
-        if (cl[j] == LIM_EMPTY_LIGHT_INDEX || !(cw[j] > 0.0)) continue;
-        count += 1.0;
-        float p = reuse_target(cl[j], s, group);
-        if (u_shadow_floor < 1.0 && p > 0.0) {
-            float v = luminance(local_shadow_hard(lights[cl[j]], s.P, s.N));
-            p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
-        }
-        cp[j] = p;
-        psum += p;
-    }
-#ifdef STB_REUSE_QUAD
-    // Defensive floor: the quad's other pixels shade this reservoir too, so its target
-    // must be > 0 wherever theirs may be (W is then an unbiased contribution weight for
-    // every pixel of the quad): + LIM_REUSE_QUAD_FLOOR x the candidates' mean target
-    // (1 where no candidate reaches this pixel: uniform).
-    pfloor = psum > 0.0 ? LIM_REUSE_QUAD_FLOOR * psum / max(count, 1.0) : 1.0;
-#endif
-    float sel_wbt = 0.0;
-    for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
-        uint li = cl[j];
-        float Wj = cw[j];
-        if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
-        float p = cp[j] + pfloor;
-        float w = p * Wj * float(STRIDE);
-        float u = rng_float(rng);
-        if (!(w > 0.0) || isinf(w)) continue;
-        ini.wsum += w;
-        if (u * ini.wsum < w) {  // stream_add, remembering the pick's W_bt for the cap
-            ini.y = li;
-            ini.py = p;
-            sel_wbt = Wj;
-        }
-    }
-    Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
-    if (u_weight_cap > 0.0 && r0.y != LIM_EMPTY_LIGHT_INDEX) {
-        r0.W = min(r0.W, u_weight_cap * float(STRIDE) * count * sel_wbt);
-    }
+    Reservoir r0 = reuse_initial_bigtile(fc, s, group, rng, pfloor);
 #else
+    Stream ini = stream_empty();
     ivec2 st; int slot;
     quad_owner(px, st, slot);
     uvec4 smp = texelFetch(u_smalltile, st, 0);

@@ -206,6 +206,14 @@ OPTIONS = Schema(
         "pixel's own target, no small-tile pass",
     ),
     Opt(
+        "reuse_target",
+        str,
+        "full",
+        choices=("full", "cheap"),
+        doc="reuse: the initial resampling's per-pixel target with reuse_candidates > 0: "
+        "full (area, cone, IES) or cheap (point light from two of its ten vec4s)",
+    ),
+    Opt(
         "reuse_res",
         str,
         "pixel",
