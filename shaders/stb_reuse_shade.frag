@@ -14,6 +14,10 @@
 //   as the term pass computes it, at full resolution): the target is unshadowed, so
 //   shadowed candidates are shaded with their zero term and add nothing.
 // * Shading: sun, ambient and emission as stb_lighting.frag, plus f(y) x W.
+// * STB_REUSE_FUSED (reuse_candidates > 0, pixel resolution, k = 0, no temporal reuse
+//   this frame): the pass computes the pixel's initial reservoir itself
+//   (common/reuse_initial.glsl) instead of reading the temporal pass's: one full-screen
+//   pass and one G-buffer read fewer, the same estimate.
 // * History: the final reservoir and this pixel's surface go to the image units read
 //   by the next frame's temporal pass. u_vis_reuse = 1 stores a reservoir whose light
 //   is fully shadowed here as empty (ReSTIR's visibility reuse: less noise in shadow,
@@ -29,6 +33,9 @@
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
 #include "common/lighting_out.glsl"
+#ifdef STB_REUSE_FUSED
+#include "common/reuse_initial.glsl"
+#endif
 
 uniform usampler2D u_reuse;  // this frame's reservoirs after temporal reuse
 uniform int u_k;             // spatial neighbours (0 .. LIM_REUSE_K_MAX)
@@ -40,6 +47,17 @@ layout(rgba32ui, binding = IMAGE_UNIT_REUSE_RESERVOIR) writeonly uniform uimage2
 layout(rgba32f, binding = IMAGE_UNIT_REUSE_SURFACE) writeonly uniform image2D u_hist_geo;
 
 const int NMAX = LIM_REUSE_K_MAX + 1;
+
+// This frame's reservoir of pixel px: its own, or its quad's (STB_REUSE_QUAD: resampled
+// at one pixel of the quad; its neighbours' MIS targets are then evaluated at the
+// neighbour pixels, not at the pixels that resampled them -- exact for reuse_k = 0).
+ivec2 reuse_texel(ivec2 px) {
+#ifdef STB_REUSE_QUAD
+    return px / 2;
+#else
+    return px;
+#endif
+}
 
 // Shadow x cone x normalised IES of light L at P (stb_shadow.frag's sample_term).
 float reuse_term(Light L, vec3 P, vec3 N) {
@@ -69,7 +87,15 @@ void main() {
     Reservoir res[NMAX];
     Surface srf[NMAX];
     uint grp[NMAX];
-    res[0] = reservoir_unpack(texelFetch(u_reuse, px, 0));
+#ifdef STB_REUSE_FUSED
+    {
+        Rng ri = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
+        float pfloor;
+        res[0] = reuse_initial_bigtile(vec2(px) + 0.5, s, group, ri, pfloor);
+    }
+#else
+    res[0] = reservoir_unpack(texelFetch(u_reuse, reuse_texel(px), 0));
+#endif
     srf[0] = s;
     grp[0] = group;
     int n = 1;
@@ -78,12 +104,12 @@ void main() {
         float r = u_radius * sqrt(rng_float(rng));
         float a = 2.0 * PI * rng_float(rng);
         ivec2 q = px + ivec2(floor(r * vec2(cos(a), sin(a)) + 0.5));
-        if (q == px || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution.xy)))) continue;
+        if (reuse_texel(q) == reuse_texel(px) || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution.xy)))) continue;
         Surface sq;
         if (!read_surface(q, sq)) continue;
         float dq = texelFetch(g_depth, q, 0).r;
         if (!reuse_similar(depth, s.N, s.roughness, dq, sq.N, sq.roughness)) continue;
-        res[n] = reservoir_unpack(texelFetch(u_reuse, q, 0));
+        res[n] = reservoir_unpack(texelFetch(u_reuse, reuse_texel(q), 0));
         srf[n] = sq;
 #ifdef HAS_LINKS
         grp[n] = link_group(q);

@@ -7,6 +7,14 @@
 //   (select=quad/pixel/ris: N independent picks, each a whole estimate, so 1/N of the
 //   sum: u_init_scale). Resampled by the per-pixel target p (common/reuse_target.glsl):
 //   w_j = p(y_j) W_j x scale, W = sum w / p(y). Confidence M = 1.
+// * STB_REUSE_BIGTILE (-o reuse_candidates=C > 0): instead, C of the big tile's K
+//   reservoirs resampled with this pixel's own target, no small-tile pass
+//   (common/reuse_initial.glsl).
+// * STB_REUSE_QUAD (-o reuse_res=quad, with STB_REUSE_BIGTILE): one reservoir per 2x2
+//   quad (this pass runs at half resolution), resampled at a random pixel of the quad
+//   with that pixel's target + a defensive floor (LIM_REUSE_QUAD_FLOOR x the candidates'
+//   mean target, > 0 for every light), so its W is an unbiased contribution weight for
+//   all four pixels, which shade it with their own f: a quarter of the targets.
 // * Temporal reuse: the previous frame's reservoir at this surface's previous pixel
 //   (the G-buffer's motion vectors minus this frame's jitter, nearest texel), kept only
 //   when that texel saw the same surface (its stored depth matches this point's depth in
@@ -30,7 +38,11 @@
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
 
+#ifdef STB_REUSE_BIGTILE
+#include "common/reuse_initial.glsl"
+#else
 uniform usampler2D u_smalltile;  // rgba32ui small-tile samples
+#endif
 uniform sampler2D u_motion;      // g_motion: current (jittered) - previous (unjittered) px
 uniform usampler2D u_prev_res;   // last frame's reservoirs (reservoir_pack)
 uniform sampler2D u_prev_geo;    // last frame's depth (m), oct normal, roughness
@@ -40,7 +52,9 @@ uniform int u_history;           // 1: the previous frame's reservoirs are usabl
 uniform int u_remap;             // 1: FoV indices changed since the last frame
 uniform float u_m_cap;           // history confidence cap
 uniform float u_init_scale;      // 1 (streams) or 1/N (independent picks)
+#ifndef STB_REUSE_BIGTILE  // else declared by common/reuse_initial.glsl
 uniform float u_shadow_floor;    // < 1: the initial resampling's target x (floor + (1 - floor) V)
+#endif
 uniform int u_changes;           // lights changed since the last frame (<= LIM_REUSE_MAX_CHANGES)
 uniform vec4 u_change_spheres[LIM_REUSE_MAX_CHANGES];  // their influence: centre xyz, radius (m)
 uniform float u_change_caps[LIM_REUSE_MAX_CHANGES];    // history confidence cap inside
@@ -50,25 +64,53 @@ layout(std430, binding = SSBO_STB_REUSE_REMAP) readonly buffer ReuseRemap { int 
 layout(location = 0) out uvec4 o_reservoir;
 
 void main() {
+#ifdef STB_REUSE_QUAD
+    // One reservoir per 2x2 quad, resampled at one of its pixels (a random one per quad
+    // and frame; background pixels skipped) and shaded at all four (see the top).
+    ivec2 qd = ivec2(gl_FragCoord.xy);
+    Rng rq = rng_init(uint(qd.y) * 8192u + uint(qd.x) + 0x74000000u, u_counts.y);
+    int k0 = int(rng_next(rq) >> 30);
+    ivec2 px = 2 * qd;
+    Surface s;
+    bool found = false;
+    for (int i = 0; i < 4 && !found; ++i) {
+        int k = (k0 + i) & 3;
+        ivec2 p = 2 * qd + ivec2(k & 1, k >> 1);
+        if (all(lessThan(p, ivec2(u_resolution.xy))) && read_surface(p, s)) {
+            px = p;
+            found = true;
+        }
+    }
+    if (!found) {
+        o_reservoir = reservoir_pack(reservoir_empty());
+        return;
+    }
+#else
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
     if (!read_surface(px, s)) {
         o_reservoir = reservoir_pack(reservoir_empty());
         return;
     }
+#endif
+    vec2 fc = vec2(px) + 0.5;  // the pixel's centre (px)
 #ifdef HAS_LINKS
     uint group = link_group(px);
 #else
     uint group = 0u;
 #endif
     Rng rng = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
-    ivec2 st; int slot;
-    quad_owner(px, st, slot);
-    uvec4 smp = texelFetch(u_smalltile, st, 0);
     // The initial resampling may weight its candidates by a cheap visibility as well
     // (one hard shadow gather, u_shadow_floor < 1): its own reservoir (y0, W0 = sum w /
     // p_init(y0)) is then combined with the history below under the common target p.
+    float pfloor = 0.0;  // added to every target of this pass (STB_REUSE_QUAD only)
+#ifdef STB_REUSE_BIGTILE
+    Reservoir r0 = reuse_initial_bigtile(fc, s, group, rng, pfloor);
+#else
     Stream ini = stream_empty();
+    ivec2 st; int slot;
+    quad_owner(px, st, slot);
+    uvec4 smp = texelFetch(u_smalltile, st, 0);
     for (int j = 0; j < STB_N; ++j) {
         uint li = sample_index(smp[j]);
         float Wj = sample_weight(smp[j]);
@@ -81,15 +123,16 @@ void main() {
         stream_add(ini, li, p, p * Wj * u_init_scale, rng_float(rng));
     }
     Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
+#endif
     Stream str = stream_empty();
     float M = 1.0;
     if (r0.y != LIM_EMPTY_LIGHT_INDEX) {
-        float p0 = reuse_target(r0.y, s, group);
+        float p0 = reuse_target(r0.y, s, group) + pfloor;
         stream_add(str, r0.y, p0, p0 * r0.W, rng_float(rng));  // M0 = 1
     }
     if (u_history == 1) {
         vec2 mv = texelFetch(u_motion, px, 0).xy - u_jitter;
-        ivec2 q = ivec2(floor(gl_FragCoord.xy - mv));
+        ivec2 q = ivec2(floor(fc - mv));
         if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, ivec2(u_resolution.xy)))) {
             vec4 g = texelFetch(u_prev_geo, q, 0);
             float prev_d = max(-(u_prev_view * vec4(s.P, 1.0)).z, 1e-6);
@@ -106,7 +149,7 @@ void main() {
                         Mh = min(Mh, u_change_caps[i]);
                     }
                 }
-                float p = reuse_target(li, s, group);
+                float p = reuse_target(li, s, group) + pfloor;
                 if (Mh > 0.0) {
                     stream_add(str, li, p, p * h.W * Mh, rng_float(rng));
                     M += Mh;

@@ -412,6 +412,10 @@ STB_REUSE_K_MAX = 8
 #: Spatial reuse radius (px) by default (``-o reuse_radius``): about one interleaved
 #: footprint, so the neighbours come from other small tiles than the pixel's own.
 STB_REUSE_RADIUS_PX = 24.0
+#: Quad-resolution reservoirs (``-o reuse_res=quad``): defensive floor of the quad's
+#: target, as a fraction of its candidates' mean target (dimensionless; > 0 keeps the
+#: reservoir unbiased for the quad's other three pixels, larger adds noise at the one).
+STB_REUSE_QUAD_FLOOR = 0.05
 #: Same-surface tests of the reuse (temporal and spatial): relative linear-depth
 #: difference, cosine between the normals, roughness difference.
 STB_REUSE_DEPTH_REL = 0.1

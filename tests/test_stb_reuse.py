@@ -82,6 +82,15 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({"reuse_temporal": "on"}, 6e-3),  # frames correlated by the history: slower
         ({"reuse_k": 0}, 3e-3),  # the per-pixel resampling of the N candidates alone
         ({"reuse_mis": "pairwise"}, 3e-3),  # pairwise MIS: also unbiased, 2k + 1 targets
+        # Candidates straight from the big tile (a random stratum of 16 of its K = 64
+        # reservoirs per pixel, no small-tile pass), with and without spatial reuse.
+        ({"reuse_candidates": 16}, 3e-3),
+        ({"reuse_candidates": 16, "reuse_k": 0, "reuse_mis": "pairwise"}, 3e-3),
+        ({"reuse_candidates": 64, "reuse_k": 0}, 3e-3),
+        # One reservoir per 2x2 quad (its defensive floor): unbiased at all four pixels.
+        ({"reuse_candidates": 16, "reuse_k": 0, "reuse_res": "quad"}, 3e-3),
+        # The cheap initial target (point lights here: it differs by no cone / area).
+        ({"reuse_candidates": 32, "reuse_k": 0, "reuse_target": "cheap"}, 3e-3),
     ],
 )
 def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):
@@ -298,6 +307,10 @@ def shadowed_scene() -> str:
         {"reuse_k": 0, "reuse_temporal": "off"},
         {"reuse_m_cap": 0.0},
         {"weight_cap": None, "shadow_res": "pixel"},
+        {"reuse_candidates": 16},  # big-tile candidates, temporal + spatial (two passes)
+        {"reuse_candidates": 64, "reuse_k": 0, "reuse_temporal": "off"},  # fused
+        {"reuse_candidates": 8, "reuse_res": "quad", "reuse_shadow_floor": 0.1},
+        {"reuse_candidates": 16, "reuse_k": 0, "reuse_target": "cheap", "weight_cap": None},
     ],
 )
 def test_no_nan_or_inf(gl_ctx, opts):
@@ -447,3 +460,18 @@ def test_taa_sliding_box_leaves_no_trail(gl_ctx):
     level = 1.5 * float(np.median(still_err[13:]))
     settle = frames_to_settle(err[13:], level)
     assert settle <= 8, (settle, err[13:].round(3).tolist(), level)
+
+
+def test_reuse_candidate_options_are_checked():
+    """reuse_candidates must divide K; quad reservoirs need big-tile candidates."""
+    from stb_hydra.renderer.lighting.options import OptionError
+    from stb_hydra.renderer.lighting.stb import StbLighting
+
+    for bad in (
+        {"reuse_candidates": 24},
+        {"reuse_candidates": 32, "K": 16},
+        {"reuse_res": "quad"},
+    ):
+        with pytest.raises(OptionError):
+            StbLighting(None, reuse=True, **bad)
+    StbLighting(None, reuse=True, reuse_candidates=16, reuse_res="quad").release()

@@ -197,6 +197,31 @@ OPTIONS = Schema(
         "MIS with confidences: unbiased, 2k+1 targets)",
     ),
     Opt(
+        "reuse_candidates",
+        int,
+        0,
+        range=(0, max(limits.BIG_TILE_SLOTS_ALLOWED)),
+        doc="reuse: initial candidates per pixel; 0: the small tile's N samples, C > 0: C "
+        "of the big tile's K reservoirs (a random stratum, K / C apart) resampled with the "
+        "pixel's own target, no small-tile pass",
+    ),
+    Opt(
+        "reuse_target",
+        str,
+        "full",
+        choices=("full", "cheap"),
+        doc="reuse: the initial resampling's per-pixel target with reuse_candidates > 0: "
+        "full (area, cone, IES) or cheap (point light from two of its ten vec4s)",
+    ),
+    Opt(
+        "reuse_res",
+        str,
+        "pixel",
+        choices=("pixel", "quad"),
+        doc="reuse: initial reservoirs per pixel or per 2x2 quad (resampled at one of its "
+        "pixels with a defensive floor, shaded at all four; needs reuse_candidates > 0)",
+    ),
+    Opt(
         "reuse_shadow_floor",
         float,
         1.0,
@@ -235,6 +260,11 @@ class StbLighting(LightingMethod):
             raise OptionError("stb option small_tile: interleaving needs 16 px small tiles")
         if o["small_tile"] > o["big_tile"]:
             raise OptionError("stb option small_tile: must be <= big_tile")
+        c = int(o["reuse_candidates"])
+        if c and (c > int(o["K"]) or int(o["K"]) % c):
+            raise OptionError("stb option reuse_candidates: must divide K")
+        if o["reuse_res"] == "quad" and not c:
+            raise OptionError("stb option reuse_res=quad: needs reuse_candidates > 0")
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
 
@@ -391,6 +421,12 @@ class StbLighting(LightingMethod):
             self.bind_common(frame, prog)
             self._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
             self._pass(frame, prog, ["stb_bigtile"], g["bigtile"])
+
+        if self.o["reuse"] and int(self.o["reuse_candidates"]):
+            # Per-pixel candidates straight from the big tiles: no small tiles, no terms.
+            self.reuse.execute(self, frame, defines, big, (lut_inv, lut_fwd))
+            frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
+            return
 
         # 2. small tiles
         small = bufs.texture("stb_smalltile", 4, "u4", size=g["smalltile"])

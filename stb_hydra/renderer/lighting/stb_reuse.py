@@ -192,22 +192,39 @@ class ReuseStage:
         history = 0 if reason or not temporal_reuse(o["reuse_temporal"], frame) else 1
         self.last_history = bool(history)
         src, dst = self._parity, 1 - self._parity
-        cur = bufs.texture(CURRENT, 4, "u4")
+        w, h = bufs.size
+        quad = o["reuse_res"] == "quad"  # one reservoir per 2x2 quad (both passes read it)
+        cur = bufs.texture(CURRENT, 4, "u4", size=((w + 1) // 2, (h + 1) // 2) if quad else None)
         h_src = bufs.texture(HISTORY[src], 4, "u4")
-        h_dst = bufs.texture(HISTORY[dst], 4, "u4")
         g_src = bufs.texture(SURFACE[src], 4, "f4")
-        g_dst = bufs.texture(SURFACE[dst], 4, "f4")
         remap = self._bind_remap(frame, rows, n_rows) if history else False
         if not history:
             self._bind_remap(frame, rows[:0], n_rows)  # the SSBO must be bound
         lut_inv, lut_fwd = luts
 
+        n_cand = int(o["reuse_candidates"])
+        if n_cand and o["reuse_target"] == "cheap":
+            defines = dict(defines, STB_REUSE_CHEAP_TARGET=True)
+        if n_cand and not quad and not history and int(o["reuse_k"]) == 0:
+            # Fused: one pass, the shading pass resamples the big tile's reservoirs itself.
+            fdefines = dict(defines, STB_REUSE_BIGTILE=n_cand, STB_REUSE_FUSED=True)
+            self._shade(method, frame, fdefines, big_tile=small)
+            self._finish(frame, rows, n_rows, reason, dst)
+            return
+
         # 1. initial candidates + temporal reuse
-        prog = program(frame, "stb_reuse_temporal.frag", defines)
+        tdefines = dict(defines, STB_REUSE_BIGTILE=n_cand) if n_cand else dict(defines)
+        if quad:
+            tdefines["STB_REUSE_QUAD"] = True
+            defines = dict(defines, STB_REUSE_QUAD=True)
+        prog = program(frame, "stb_reuse_temporal.frag", tdefines)
         method._common_uniforms(frame, prog)
+        if n_cand:
+            set_uniform(prog, "u_big_tiles", method.grid(w, h)["big_tiles"])
+            set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
         unit = method.bind_common(frame, prog)
         for name, tex in (
-            ("u_smalltile", small),
+            ("u_smalltile" if not n_cand else "u_bigtile", small),
             ("u_quad_lut", lut_inv),
             ("u_quad_fwd", lut_fwd),
             ("u_motion", bufs.textures["g_motion"]),
@@ -225,12 +242,37 @@ class ReuseStage:
         set_uniform(prog, "u_init_scale", 1.0 / int(o["N"]) if one else 1.0)
         set_uniform(prog, "u_eps", float(o["eps"]))
         set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
-        method._pass(frame, prog, [CURRENT], bufs.size)
+        method._pass(frame, prog, [CURRENT], cur.size)
 
         # 2. spatial reuse, visibility, shading, history
+        self._shade(method, frame, defines, cur=cur)
+        self._finish(frame, rows, n_rows, reason, dst)
+
+    def _shade(
+        self,
+        method: Any,
+        frame: FrameContext,
+        defines: dict[str, Any],
+        cur: moderngl.Texture | None = None,
+        big_tile: moderngl.Texture | None = None,
+    ) -> None:
+        """The shading pass (``stb_reuse_shade.frag``): reads this frame's reservoirs
+        ``cur``, or (fused) resamples the big-tile reservoirs ``big_tile`` itself."""
+        o = method.o
+        bufs = frame.buffers
+        h_dst = bufs.texture(HISTORY[1 - self._parity], 4, "u4")
+        g_dst = bufs.texture(SURFACE[1 - self._parity], 4, "f4")
         prog = program(frame, "stb_reuse_shade.frag", method.lighting_defines(frame, defines))
         unit = method.bind_common(frame, prog)
-        method._bind(frame, prog, unit, "u_reuse", cur)
+        if cur is not None:
+            method._bind(frame, prog, unit, "u_reuse", cur)
+        if big_tile is not None:
+            method._common_uniforms(frame, prog)
+            w, h = bufs.size
+            set_uniform(prog, "u_big_tiles", method.grid(w, h)["big_tiles"])
+            set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
+            set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
+            method._bind(frame, prog, unit, "u_bigtile", big_tile)
         set_uniform(prog, "u_k", int(o["reuse_k"]))
         set_uniform(prog, "u_radius", float(o["reuse_radius"]))
         set_uniform(prog, "u_mis", MIS_MODES[o["reuse_mis"]])
@@ -242,6 +284,10 @@ class ReuseStage:
             method.fullscreen_pass(frame, prog, "lighting")
         frame.ctx.memory_barrier()
 
+    def _finish(
+        self, frame: FrameContext, rows: np.ndarray, n_rows: int, reason: str, dst: int
+    ) -> None:
+        """Remember this frame for the next one's temporal reuse."""
         self._prev_view = frame.view
         self._prev_rows = rows.copy()
         self._n_rows = n_rows
