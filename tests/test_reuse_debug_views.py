@@ -168,3 +168,33 @@ def test_cli_refuses_reuse_views_without_reuse_in_one_line(tmp_path):
     lines = err.read_text().strip().splitlines()
     assert code == EXIT_ERROR and len(lines) == 1, lines
     assert "reuse_m need -o reuse=on" in lines[0] and not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [
+        # nothing reused (k = 0, no history): the fused single pass
+        {"reuse_candidates": 32, "reuse_k": 0, "big_tile": 32, "reuse_temporal": "off"},
+        {"reuse_candidates": 32, "reuse_res": "quad", "big_tile": 32},  # quad reservoirs
+    ],
+)
+def test_views_with_per_pixel_candidates(gl_ctx, slider_stage, opts):
+    """The reuse's other layouts (issue 31's per-pixel big-tile candidates: no small-tile
+    or term pass; quad-resolution reservoirs) draw the reuse views and the big-tile view,
+    and no longer offer the views of passes that do not run."""
+    eng = engine(slider_stage, 64, 36, **opts)
+    try:
+        views = set(eng.method.debug_aovs)
+        assert "shadowterms" not in views and "smalltile" not in views
+        eng.request_aovs({"bigtile", *REUSE_DEBUG_AOVS})
+        for _ in range(3):
+            eng.render(time=1.0)
+        for name in ("bigtile", *REUSE_DEBUG_AOVS):
+            a = eng.aovs[name]
+            assert a.shape == (36, 64, 3) and np.isfinite(a).all() and a.max() > 0.05, name
+        reject = eng.aovs["reuse_reject"]
+        fused = opts.get("reuse_temporal") == "off"  # no temporal pass at all
+        want = REUSE_REJECT_COLORS["none" if fused else "taken"]
+        assert _close(reject, want).mean() > 0.9
+    finally:
+        eng.release()

@@ -246,6 +246,8 @@ DEBUG_AOVS = ("bigtile", "smalltile", "shadowterms")
 REUSE_DEBUG_AOVS = ("reuse_m", "reuse_light", "reuse_reject")
 #: Textures a debug view samples (uniform -> render buffer).
 DEBUG_INPUTS = {"u_bigtile": "stb_bigtile", "u_smalltile": "stb_smalltile", "u_terms": "stb_terms"}
+#: The one each view of DEBUG_AOVS samples.
+DEBUG_VIEW_INPUT = {"bigtile": "u_bigtile", "smalltile": "u_smalltile", "shadowterms": "u_terms"}
 
 
 class StbLighting(LightingMethod):
@@ -282,8 +284,12 @@ class StbLighting(LightingMethod):
         self._cluster_buffers: SSBOPool | None = None
         #: Reservoir reuse (``-o reuse=on``) and its history.
         self.reuse = ReuseStage()
-        #: The views this instance draws (the reuse views need its reservoirs).
-        self.debug_aovs = DEBUG_AOVS + (REUSE_DEBUG_AOVS if self.o["reuse"] else ())
+        #: The views this instance draws: the reuse views need its reservoirs; under
+        #: reuse no term pass runs, nor the small-tile pass with per-pixel candidates.
+        self.debug_aovs = DEBUG_AOVS
+        if self.o["reuse"]:
+            small = () if self.o["reuse_candidates"] else ("smalltile",)
+            self.debug_aovs = ("bigtile", *small, *REUSE_DEBUG_AOVS)
 
     def internal(self) -> tuple[Tex, ...]:
         reuse = reuse_textures() if self.o["reuse"] else ()
@@ -584,11 +590,15 @@ class StbDebugPass(Pass):
         self.aov = aov
         self.name = f"debug_{aov}"  # type: ignore[misc]
 
+    def _inputs(self) -> tuple[str, ...]:
+        """The render buffers this view samples."""
+        if self.aov in REUSE_DEBUG_AOVS:
+            return tuple(t.name for t in reuse_textures()[:3])
+        return (DEBUG_INPUTS[DEBUG_VIEW_INPUT[self.aov]],)
+
     def io(self) -> tuple[tuple[Resource, ...], tuple[Resource, ...]]:
-        inputs = reuse_textures()[:3] if self.aov in REUSE_DEBUG_AOVS else ()
         reads: tuple[Resource, ...] = (
-            *(Tex(n) for n in DEBUG_INPUTS.values()),
-            *(Tex(t.name) for t in inputs),
+            *(Tex(n) for n in self._inputs()),
             Rec(InViewLights),
             Rec(DistantLights),
             Rec(LightBuffer),
@@ -608,15 +618,18 @@ class StbDebugPass(Pass):
         prog = program(frame, f"debug_{self.aov}.frag", m.defines(frame))
         m._common_uniforms(frame, prog)
         unit = 0
-        for uniform, name in DEBUG_INPUTS.items():
-            unit = m._bind(frame, prog, unit, uniform, tex[name])
-        unit = m._bind(frame, prog, unit, "u_quad_lut", lut_inv)
-        unit = m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
         if self.aov in REUSE_DEBUG_AOVS:
             cur, newest = m.reuse.debug_inputs()
             unit = m._bind(frame, prog, unit, "u_reuse_cur", tex[cur])
             m._bind(frame, prog, unit, "u_reuse_res", tex[newest])
             set_uniform(prog, "u_history", 1 if m.reuse.last_history else 0)
+            # this frame's reservoirs after temporal reuse: one per 2x2 quad (reuse_res=quad)
+            set_uniform(prog, "u_cur_shift", 1 if m.o["reuse_res"] == "quad" else 0)
+        else:
+            uniform = DEBUG_VIEW_INPUT[self.aov]
+            unit = m._bind(frame, prog, unit, uniform, tex[DEBUG_INPUTS[uniform]])
+            unit = m._bind(frame, prog, unit, "u_quad_lut", lut_inv)
+            unit = m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
         draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
 
 
