@@ -50,6 +50,8 @@ class InViewLights:
     rows: np.ndarray
     has_cones: bool = False
     has_ies: bool = False
+    #: Some of them is a textured RectLight (``RECT_TEXTURES``).
+    has_rect_textures: bool = False
     point_count: int = 0
 
     @property

@@ -22,6 +22,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import moderngl
+import numpy as np
 
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
@@ -98,6 +99,10 @@ class LightingMethod:
     #: light's visibility while a lone real-time frame keeps the fixed set (no shimmer):
     #: the exact methods.
     area_shadows_per_frame: ClassVar[bool] = False
+    #: Textured RectLights are integrated cell by cell (``RECT_TEXTURE_EXACT``,
+    #: common/rect_texture_shading.glsl): the exact methods, which must equal the
+    #: reference; the others use the textured-LTC lookup.
+    exact_rect_textures: ClassVar[bool] = False
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -159,6 +164,9 @@ class LightingMethod:
             defines["HAS_AMBIENT"] = True
         if dome is not None:
             defines["HAS_DOME_MAP"] = True  # the textured dome (common/dome.glsl)
+        d = self.delegate
+        if d is not None and len(d.seen_rect_emitters()):
+            defines["RECT_EMITTERS_SEEN"] = True  # common/rect_emitter.glsl
         if frame.get(LightBuffer).links:
             defines["HAS_LINKS"] = True  # common/links.glsl
         if self.clearcoat:
@@ -169,6 +177,10 @@ class LightingMethod:
                 defines["HAS_IES"] = True
             if lights.has_cones:
                 defines["HAS_CONES"] = True
+            if lights.has_rect_textures and d is not None and d.rect_texture_array is not None:
+                defines["RECT_TEXTURES"] = True  # common/rect_texture_shading.glsl
+                if self.exact_rect_textures:
+                    defines["RECT_TEXTURE_EXACT"] = True
             if frame.get(LightBuffer).has_shadows:
                 defines["HAS_SHADOWS"] = True
                 if frame.settings.shadow_filter == "stochastic":
@@ -225,6 +237,18 @@ class LightingMethod:
             unit += 1
         if d is not None and "u_dome_mult" in prog:  # common/dome.glsl
             unit = d.dome_env.bind(prog, unit)
+        if d is not None and "u_rect_tex" in prog and d.rect_texture_array is not None:
+            d.rect_texture_array.use(unit)  # common/rect_texture.glsl
+            cast(moderngl.Uniform, prog["u_rect_tex"]).value = unit
+            unit += 1
+        if d is not None and "u_rect_seen_count" in prog:  # common/rect_emitter.glsl
+            seen = d.seen_rect_emitters()
+            set_uniform(prog, "u_rect_seen_count", len(seen))
+            if len(seen) and "u_rect_seen" in prog:
+                u = cast(moderngl.Uniform, prog["u_rect_seen"])
+                full = np.zeros((u.array_length, 4), np.float32)
+                full[: 4 * len(seen)] = seen.reshape(-1, 4)[: u.array_length]
+                u.write(full.tobytes())
         return unit
 
     def prepare(self, frame: FrameContext) -> None:

@@ -69,6 +69,7 @@ class LightTreeLighting(LightingMethod):
     name = "lighttree"
     options = OPTIONS
     area_shadows_per_frame = True
+    exact_rect_textures = True
 
     @classmethod
     def check_options(cls, o: dict) -> None:

@@ -20,6 +20,7 @@ class ReferenceLighting(LightingMethod):
     name = "reference"
     points_first = True
     area_shadows_per_frame = True
+    exact_rect_textures = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
