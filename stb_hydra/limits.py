@@ -659,3 +659,7 @@ RECT_TEXTURE_GRID = 8
 #: integral times Heitz et al. 2016's prefiltered lookup inside the cell (4 polygon
 #: integrals per lobe instead of 1; exact for a texture constant over 2 x 2 cells).
 RECT_TEXTURE_GRID_REALTIME = 2
+#: STB's textured-LTC lookup (Heitz et al. 2016): the lobe's footprint on the rect, in
+#: units of its distance to the rect's plane (in cosine / LTC space), sets the mip level.
+#: Heitz's demo: 1 (its log-3 pyramid); measured by tools/rect_texture_accuracy.py.
+RECT_TEXTURE_FOOTPRINT = 1.0

@@ -15,8 +15,8 @@
 // * otherwise (STB): G = LIM_RECT_TEXTURE_GRID_RT; the value is Heitz, Dupuy, Hill &
 //   Neubelt 2016's textured-LTC lookup inside the cell: the prefiltered texture where
 //   the cell integral's mean direction (its vector form factor, in cosine / LTC space)
-//   meets it, at the mip level of the lobe's footprint there (twice the distance to
-//   the plane, over the rect's size), never coarser than the cell.
+//   meets it, at the mip level of the lobe's footprint there (LIM_RECT_TEXTURE_FOOTPRINT
+//   x the distance to the plane, over the cell's size), never coarser than the cell.
 #ifndef STB_RECT_TEXTURE_SHADING_GLSL
 #define STB_RECT_TEXTURE_SHADING_GLSL
 #include "common/rect_texture.glsl"
@@ -76,7 +76,7 @@ vec3 polygon_form_vector(vec3 v[AREA_MAXV], int n, vec3 N) {
 // space: the cell fractions survive linear maps) for normal N: its integral x the
 // prefiltered texture where its vector form factor's direction meets it, at the mip
 // level of the lobe's footprint (no coarser than the cell's level `lod`), kept half a
-// texel inside the cell.
+// texel (of the coarser of the two levels filtered) inside the cell.
 vec3 rect_cell_term(Light L, int lod, int G, int i, int j, vec3 a, vec3 dx, vec3 dy, vec3 N) {
     vec3 v[AREA_MAXV];
     v[0] = a; v[1] = a + dx; v[2] = a + dx + dy; v[3] = a + dy;
@@ -95,8 +95,9 @@ vec3 rect_cell_term(Light L, int lod, int G, int i, int j, vec3 a, vec3 dx, vec3
         ab = vec2(yy * qx - xy * qy, xx * qy - xy * qx) / max(xx * yy - xy * xy, 1e-30);
     }
     float cell = float(textureSize(u_rect_tex, 0).x) / float(G);   // texels per cell side
-    float l = clamp(log2(2.0 * abs(h) / area * inversesqrt(area) * cell), 0.0, float(lod));
-    float half_texel = 0.5 * exp2(l) / cell;
+    float foot = LIM_RECT_TEXTURE_FOOTPRINT * abs(h) / area;   // m (or LTC units)
+    float l = clamp(log2(foot * inversesqrt(area) * cell), 0.0, float(lod));
+    float half_texel = 0.5 * exp2(ceil(l)) / cell;   // of the coarser level filtered
     ab = clamp(ab, vec2(half_texel), vec2(1.0 - half_texel));
     return F * rect_tex_at(L.tangent_tex.w, (vec2(i, j) + ab) / float(G), l);
 }

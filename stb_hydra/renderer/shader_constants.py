@@ -220,6 +220,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_RECT_TEXTURES": str(limits.MAX_RECT_TEXTURES),
         "LIM_RECT_TEXTURE_GRID": str(limits.RECT_TEXTURE_GRID),
         "LIM_RECT_TEXTURE_GRID_RT": str(limits.RECT_TEXTURE_GRID_REALTIME),
+        "LIM_RECT_TEXTURE_FOOTPRINT": f"{limits.RECT_TEXTURE_FOOTPRINT:.4f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),
