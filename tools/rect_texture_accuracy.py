@@ -14,6 +14,11 @@ relative luminance error (pixels above 1 % of the truth's maximum) of the refere
 emitting its texture's mean), unshadowed, one frame.
 
     PYTHONPATH=$PWD:$PWD/tests .venv/bin/python tools/rect_texture_accuracy.py [--size 96x54]
+
+``--bench-scenes DIR`` instead writes the cost scenes of docs/PERFORMANCE.md ("Textured
+RectLights"): tests/area_scenes.py's floor + box under its rect light, with the
+``softbox`` texture (``rect_tex.usda``) and without (``rect_plain.usda``, the same mean
+colour), for ``stb bench``.
 """
 
 from __future__ import annotations
@@ -95,6 +100,24 @@ def lights(img8: np.ndarray, path: str, model: str, spec: int, L: float = 1000.0
     return "".join(out)
 
 
+def bench_scenes(out: Path) -> None:
+    """``rect_tex.usda`` / ``rect_plain.usda`` in ``out`` (see the module docstring)."""
+    from area_scenes import LIGHTS, SCENE_USDA
+
+    from stb_hydra.color.texture_spaces import srgb_to_linear
+
+    out.mkdir(parents=True, exist_ok=True)
+    img8 = texture("softbox")
+    path = write_png(out / "softbox.png", img8)
+    c = srgb_to_linear(img8.astype(np.float32) / 255.0).astype(np.float64).mean(axis=(0, 1))
+    tex = f"    float inputs:height = 0.5\n    asset inputs:texture:file = @{path}@\n"
+    col = f"    float inputs:height = 0.5\n    color3f inputs:color = ({c[0]}, {c[1]}, {c[2]})\n"
+    for name, body in (("rect_tex", tex), ("rect_plain", col)):
+        light = LIGHTS["rect"].replace("    float inputs:height = 0.5\n", body)
+        (out / f"{name}.usda").write_text(SCENE_USDA.format(light=light))
+        print(out / f"{name}.usda")
+
+
 def luma(img: np.ndarray) -> np.ndarray:
     return img[..., :3].astype(np.float64) @ np.array([0.2126, 0.7152, 0.0722])
 
@@ -103,7 +126,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", default="96x54")
     ap.add_argument("--textures", default=",".join(TEXTURES))
+    ap.add_argument("--bench-scenes", metavar="DIR", help="write the cost scenes and stop")
     args = ap.parse_args()
+    if args.bench_scenes:
+        bench_scenes(Path(args.bench_scenes))
+        return
     w, h = (int(v) for v in args.size.split("x"))
     from area_scenes import glossy_stage
     from stagegen import LAMBERT_FLOOR_USDA, usda_stage
