@@ -110,18 +110,29 @@ def test_exact_methods_equal_the_reference(gl_ctx, tmp_path):
         assert np.abs(got - ref).max() <= 1e-4 * ref.max(), method
 
 
-@pytest.mark.parametrize("method", ["reference", "stb"])
-def test_half_texture_glossy_equals_its_white_half(gl_ctx, tmp_path, method):
-    """The specular lobe (LTC, per cell): on a GGX metal floor (roughness 0.3) the half
-    texture reflects exactly what the white half alone, an untextured 0.5 m rect, does
-    (LTC integrals add over the cells; both lights are wide for the lobe)."""
+@pytest.mark.parametrize(
+    ("method", "coat"), [("reference", False), ("stb", False), ("reference", True)]
+)
+def test_half_texture_glossy_equals_its_white_half(gl_ctx, tmp_path, method, coat):
+    """The specular lobe (LTC, per cell): on a GGX metal floor (roughness 0.3; with
+    ``coat``, under a clearcoat of roughness 0.1) the half texture reflects exactly what
+    the white half alone, an untextured 0.5 m rect, does (LTC integrals add over the
+    cells; both lights are wide for the lobes)."""
     from area_scenes import glossy_stage
 
-    on = rect_light(half_texture(tmp_path)).replace("inputs:specular = 0", "inputs:specular = 1")
-    half = rect_light(None, w=0.5, x=0.25).replace("inputs:specular = 0", "inputs:specular = 1")
+    def stage(light: str):
+        st = glossy_stage("rect", 0.3, light.replace("inputs:specular = 0", "inputs:specular = 1"))
+        if coat:
+            pbr = st.GetPrimAtPath("/Looks/Grey/PBR")
+            pbr.CreateAttribute("inputs:clearcoat", Sdf.ValueTypeNames.Float).Set(1.0)
+            rough = pbr.CreateAttribute("inputs:clearcoatRoughness", Sdf.ValueTypeNames.Float)
+            rough.Set(0.1)
+        return st
+
     kw = {"width": W, "height": H, "lighting": method, "shadows": False}
-    got = stb_hydra.render(glossy_stage("rect", 0.3, on), **kw)[..., 1].astype(np.float64)
-    want = stb_hydra.render(glossy_stage("rect", 0.3, half), **kw)[..., 1].astype(np.float64)
+    on = stage(rect_light(half_texture(tmp_path)))
+    got = stb_hydra.render(on, **kw)[..., 1].astype(np.float64)
+    want = stb_hydra.render(stage(rect_light(None, w=0.5, x=0.25)), **kw)[..., 1].astype(np.float64)
     m = want > 0.01 * want.max()
     rel = np.abs(got[m] - want[m]) / want[m]
     assert np.median(rel) < 2e-3 and rel.max() < 2e-2, (np.median(rel), rel.max())

@@ -234,6 +234,21 @@ bool area_reflect_coated(Light L, Surface s, vec3 Ldir, float dist, float f, flo
         c.f0 = vec3(COAT_F0);
         coat += ltc_specular(c, v, n) * Lrad * s.coat * wc;
     }
+#ifdef RECT_TEXTURES
+    if (L.tangent_tex.w >= 0.0 && n > 0) {  // a textured rect: every lobe over its texture
+        vec3 ftex, stex, ctex = vec3(0.0), unused;
+        rect_texture_terms(L, s, v, area, ws > 0.0, ftex, stex);
+        if (wc > 0.0) {
+            Surface c = s;
+            c.alpha = s.coat_alpha;
+            c.f0 = vec3(COAT_F0);
+            rect_texture_terms(L, c, v, false, true, unused, ctex);
+        }
+        if (area) base_d = s.diffuse * Lrad * ftex;
+        base_s = ssp * E * (1.0 - ws) + stex * Lrad * ws;
+        coat = vec3(csp) * E * (1.0 - wc) + ctex * Lrad * s.coat * wc;
+    }
+#endif
     float att = area ? 1.0 - fcv : 1.0 - fc;
     diff = base_d * att;
     spec = base_s * att + coat;
@@ -277,7 +292,7 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
 #ifdef RECT_TEXTURES
     if (L.tangent_tex.w >= 0.0) {  // a textured rect: its texture over the polygon
         vec3 ftex, stex;
-        rect_texture_terms(L, s, v, ws > 0.0, ftex, stex);
+        rect_texture_terms(L, s, v, true, ws > 0.0, ftex, stex);
         diff = s.diffuse * Lrad * ftex;
         if (ws < 1.0) spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * (1.0 - ws);
         if (ws > 0.0) spec += stex * Lrad * ws;

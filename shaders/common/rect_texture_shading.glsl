@@ -103,10 +103,11 @@ vec3 rect_cell_term(Light L, int lod, int G, int i, int j, vec3 a, vec3 dx, vec3
 }
 #endif
 
-// Texture-weighted form factor (rgb) and, when `spec`, LTC specular per unit radiance
-// (rgb, Fresnel included) of textured rect L, polygon v (area_polygon: corners -X-Y,
-// +X-Y, +X+Y, -X+Y, relative to P).
-void rect_texture_terms(Light L, Surface s, vec3 v[AREA_MAXV], bool spec, out vec3 ff, out vec3 sp) {
+// When `diffuse`, the texture-weighted form factor ff (rgb), and when `spec`, the LTC
+// specular per unit radiance sp (rgb, Fresnel included) of textured rect L, polygon v
+// (area_polygon: corners -X-Y, +X-Y, +X+Y, -X+Y, relative to P); 0 otherwise.
+void rect_texture_terms(Light L, Surface s, vec3 v[AREA_MAXV], bool diffuse, bool spec,
+                        out vec3 ff, out vec3 sp) {
     int lod = int(rect_tex_max_lod()) - findMSB(RECT_CELLS);
     // G x G texels at that level: read back, not the constant, so the compiler cannot
     // unroll the loop (one copy of the cell code: a cold compile near the untextured one).
@@ -121,7 +122,7 @@ void rect_texture_terms(Light L, Surface s, vec3 v[AREA_MAXV], bool spec, out ve
     sp = vec3(0.0);
     // Cell k % G along +X, k / G along +Y; k >= G^2: the same cells for the LTC lobe.
     int n = spec ? 2 * G * G : G * G;
-    for (int k = 0; k < n; ++k) {
+    for (int k = diffuse ? 0 : G * G; k < n; ++k) {
         bool lobe = k >= G * G;
         int c = lobe ? k - G * G : k;
         int i = c % G, j = c / G;
