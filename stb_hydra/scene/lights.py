@@ -23,6 +23,9 @@ Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
   angle is 0 or ``normalize`` is on. DomeLight: radiance L (nits) times its
   texture (``scene/dome.py``; ``intensity`` carries L times the texture's
   solid-angle mean); ``normalize`` has no effect on a dome (it has no size).
+  RectLight ``inputs:texture:file``: the rect emits L times its texture
+  (``scene/rect_texture.py``: first image column on +X, top row on +Y);
+  ``intensity`` carries L times the texture's mean.
 * Positions/directions/lengths are in the render frame (Y up, metres).
 
 Bad input never raises: the light is disabled and a one-line warning naming the
