@@ -653,3 +653,27 @@ DOME_OCCLUSION_SAMPLES = 8
 #: Ramamoorthi & Hanrahan 2001's irradiance environment map; exact for a map of band
 #: <= 2 such as the half sky). Sizes the u_dome_sh uniform array.
 DOME_SH_COEFFS = 9
+
+# --- RectLight textures (issue 37 item 3, scene/rect_texture.py, common/rect_texture.glsl) --
+
+#: Side (texels) of the square layer a RectLight texture is box-resampled into (its
+#: mip chain down to 1 x 1 is box-filtered too): 256 keeps a 0.4 % texel of the rect
+#: at 256 KiB of RGB16F a layer (+ mips).
+RECT_TEXTURE_PX = 256
+#: Textured RectLights with distinct textures on the GPU at once (texture-array layers;
+#: more: the rest emit their mean, with a warning). Also the most textured rects the
+#: camera sees directly (``u_rect_seen``).
+MAX_RECT_TEXTURES = 16
+#: Cells per side of the grid the exact methods integrate a textured rect over (each
+#: cell a uniform polygon of its box-filtered texel, mip level log2(RECT_TEXTURE_PX /
+#: RECT_TEXTURE_GRID)): exact for a texture constant over those cells (a two-tone
+#: half/half texture), 64 polygon integrals per pixel and light otherwise.
+RECT_TEXTURE_GRID = 8
+#: Cells per side for the real-time methods (STB): each cell's form factor / LTC
+#: integral times Heitz et al. 2016's prefiltered lookup inside the cell (4 polygon
+#: integrals per lobe instead of 1; exact for a texture constant over 2 x 2 cells).
+RECT_TEXTURE_GRID_REALTIME = 2
+#: STB's textured-LTC lookup (Heitz et al. 2016): the lobe's footprint on the rect, in
+#: units of its distance to the rect's plane (in cosine / LTC space), sets the mip level.
+#: Heitz's demo: 1 (its log-3 pyramid); measured by tools/rect_texture_accuracy.py.
+RECT_TEXTURE_FOOTPRINT = 1.0

@@ -34,7 +34,7 @@
 // sqrt(alpha) from sqrt(LIM_GGX_ALPHA_MIN) to 1, sqrt(1 - N.V) from 0 to 1.
 uniform sampler2DArray u_ltc;
 
-vec3 light_bitangent(Light L) { return cross(-L.axis_emit.xyz, L.tangent_type.xyz); }
+vec3 light_bitangent(Light L) { return cross(-L.axis_emit.xyz, L.tangent_tex.xyz); }
 
 // Half extent of the light (m): the radius of a disk or sphere, half the diagonal of a
 // rect, half the length of a cylinder (0 for the point model).
@@ -49,7 +49,7 @@ float light_half_extent(Light L) {
 // from the receiver towards the light): the shape its soft shadows use (PCSS in
 // common/shadow.glsl). Rect and cylinder: their axes scaled to the equal-area ellipse.
 void light_shadow_axes(Light L, vec3 ldir, out vec3 A, out vec3 B) {
-    vec3 X = L.tangent_type.xyz;
+    vec3 X = L.tangent_tex.xyz;
     const float k = 1.1283792;  // 2 / sqrt(pi): square of half side 1 -> disk of equal area
     if (L.area.z == AREA_RECT) { A = X * L.area.x * k; B = light_bitangent(L) * L.area.y * k; return; }
     if (L.area.z == AREA_DISK) { A = X * L.area.x; B = light_bitangent(L) * L.area.x; return; }
@@ -72,7 +72,7 @@ bool light_is_area(Light L, float dist) {
 int area_polygon(Light L, vec3 P, out vec3 v[AREA_MAXV]) {
     const int M = LIM_AREA_POLY_VERTS;
     vec3 c = L.pos_range.xyz - P;          // light centre relative to P
-    vec3 X = L.tangent_type.xyz;
+    vec3 X = L.tangent_tex.xyz;
     vec3 Y = light_bitangent(L);
     vec3 Z = L.axis_emit.xyz;              // emission axis (light -Z)
     float kind = L.area.z;
@@ -166,29 +166,45 @@ float area_spec_weight(float ext, float dist, float alpha) {
     return clamp((x - LIM_AREA_SPEC_POINT) / (LIM_AREA_SPEC_LTC - LIM_AREA_SPEC_POINT), 0.0, 1.0);
 }
 
-// GGX specular x cos of a polygon (relative to P), integrated by LTC: per unit radiance,
-// with Schlick's Fresnel (f0).
-vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
+// The LTC of surface s: the frame (T1 towards V, T2, N), the fitted inverse matrix m
+// (m00, m02, m20, m22) and the lobe's albedo with Schlick's Fresnel (f0) split out.
+void ltc_setup(Surface s, out vec3 T1, out vec3 T2, out vec4 m, out vec3 albedo) {
     float NoV = clamp(dot(s.N, s.V), 1e-4, 1.0);
-    vec3 T1 = s.V - s.N * dot(s.N, s.V);
+    T1 = s.V - s.N * dot(s.N, s.V);
     float lt = length(T1);
     T1 = lt > 1e-5 ? T1 / lt
         : normalize(abs(s.N.y) < 0.9 ? cross(s.N, vec3(0.0, 1.0, 0.0)) : cross(s.N, vec3(1.0, 0.0, 0.0)));
-    vec3 T2 = cross(s.N, T1);
+    T2 = cross(s.N, T1);
     vec2 size = vec2(textureSize(u_ltc, 0).xy);
     float amin = sqrt(LIM_GGX_ALPHA_MIN);
     vec2 t = vec2((sqrt(s.alpha) - amin) / (1.0 - amin), sqrt(1.0 - NoV));
     vec2 uv = (clamp(t, 0.0, 1.0) * (size - 1.0) + 0.5) / size;
-    vec4 m = texture(u_ltc, vec3(uv, 0.0));
+    m = texture(u_ltc, vec3(uv, 0.0));
     vec2 nf = texture(u_ltc, vec3(uv, 1.0)).xy;
-    vec3 w[AREA_MAXV];
-    for (int i = 0; i < n; ++i) {
-        vec3 q = vec3(dot(T1, v[i]), dot(T2, v[i]), dot(s.N, v[i]));
-        w[i] = vec3(m.x * q.x + m.y * q.z, q.y, m.z * q.x + m.w * q.z);
-    }
-    float I = polygon_form_factor(w, n, vec3(0.0, 0.0, 1.0));
-    return (s.f0 * (nf.x - nf.y) + nf.y) * I;
+    albedo = s.f0 * (nf.x - nf.y) + nf.y;
 }
+
+// Point p (relative to P, world) mapped into the LTC's cosine space.
+vec3 ltc_apply(vec3 T1, vec3 T2, vec3 N, vec4 m, vec3 p) {
+    vec3 q = vec3(dot(T1, p), dot(T2, p), dot(N, p));
+    return vec3(m.x * q.x + m.y * q.z, q.y, m.z * q.x + m.w * q.z);
+}
+
+// GGX specular x cos of a polygon (relative to P), integrated by LTC: per unit radiance,
+// with Schlick's Fresnel (f0).
+vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
+    vec3 T1, T2, albedo;
+    vec4 m;
+    ltc_setup(s, T1, T2, m, albedo);
+    vec3 w[AREA_MAXV];
+    for (int i = 0; i < n; ++i) w[i] = ltc_apply(T1, T2, s.N, m, v[i]);
+    float I = polygon_form_factor(w, n, vec3(0.0, 0.0, 1.0));
+    return albedo * I;
+}
+
+#ifdef RECT_TEXTURES
+#include "common/rect_texture_shading.glsl"
+#endif
 
 // Form factor of a sphere of radius r whose centre is at c (relative to P, |c| > r) for a
 // surface of unit normal N, horizon clipped: irradiance / (pi x radiance), in [0, 1].
@@ -271,6 +287,21 @@ bool area_reflect_coated(Light L, Surface s, vec3 Ldir, float dist, float f, flo
         c.f0 = vec3(COAT_F0);
         coat += ltc_specular(c, v, n) * Lrad * s.coat * wc;
     }
+#ifdef RECT_TEXTURES
+    if (L.tangent_tex.w >= 0.0 && n > 0) {  // a textured rect: every lobe over its texture
+        vec3 ftex, stex, ctex = vec3(0.0), unused;
+        rect_texture_terms(L, s, v, area, ws > 0.0, ftex, stex);
+        if (wc > 0.0) {
+            Surface c = s;
+            c.alpha = s.coat_alpha;
+            c.f0 = vec3(COAT_F0);
+            rect_texture_terms(L, c, v, false, true, unused, ctex);
+        }
+        if (area) base_d = s.diffuse * Lrad * ftex;
+        base_s = ssp * E * (1.0 - ws) + stex * Lrad * ws;
+        coat = vec3(csp) * E * (1.0 - wc) + ctex * Lrad * s.coat * wc;
+    }
+#endif
     float att = area ? 1.0 - fcv : 1.0 - fc;
     diff = base_d * att;
     spec = base_s * att + coat;
@@ -319,6 +350,16 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     float window = range_window(dist, L.pos_range.w);
     // Radiance x focus tint x IES scale (no emission model: the polygon integrates it).
     vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
+#ifdef RECT_TEXTURES
+    if (L.tangent_tex.w >= 0.0) {  // a textured rect: its texture over the polygon
+        vec3 ftex, stex;
+        rect_texture_terms(L, s, v, true, ws > 0.0, ftex, stex);
+        diff = s.diffuse * Lrad * ftex;
+        if (ws < 1.0) spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * (1.0 - ws);
+        if (ws > 0.0) spec += stex * Lrad * ws;
+        return true;
+    }
+#endif
     float F = sphere ? sphere_form_factor(Ldir * dist, L.area.x, s.N)
                      : polygon_form_factor(v, n, s.N);
     diff = s.diffuse * Lrad * F;

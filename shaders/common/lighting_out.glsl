@@ -10,6 +10,9 @@
 #ifdef HAS_DOME_MAP
 #include "common/dome.glsl"
 #endif
+#ifdef RECT_EMITTERS_SEEN
+#include "common/rect_emitter.glsl"
+#endif
 
 layout(location = 0) out vec4 o_color;
 #ifdef TAA_DEMOD_OUT
@@ -24,7 +27,8 @@ void write_demod(ivec2 px, vec4 color, vec3 alb) {
 #endif
 
 // A background pixel: the dome seen directly (alpha 1), else transparent black. A
-// textured dome the camera sees (HAS_DOME_MAP, u_dome_mult.z) shows its map.
+// textured dome the camera sees (HAS_DOME_MAP, u_dome_mult.z) shows its map; a textured
+// RectLight the camera sees (RECT_EMITTERS_SEEN) its texture, in front of the dome.
 void write_background(ivec2 px) {
     vec3 bg = u_ambient.rgb;
     bool seen = bg.r + bg.g + bg.b > 0.0;
@@ -35,6 +39,14 @@ void write_background(ivec2 px) {
         seen = true;
     }
 #endif
+#ifdef RECT_EMITTERS_SEEN
+    vec3 O, D, rad;
+    camera_ray(vec2(px) + 0.5, O, D);
+    if (rect_emitter_seen(O, D, 3.0e38, rad)) {
+        bg = rad;
+        seen = true;
+    }
+#endif
     o_color = seen ? vec4(sanitize_radiance(bg * u_clip.w), 1.0) : vec4(0.0);
 #ifdef TAA_DEMOD_OUT
     write_demod(px, o_color, demod_albedo(texelFetch(g_base_rough, px, 0),
@@ -42,8 +54,14 @@ void write_background(ivec2 px) {
 #endif
 }
 
-// A surface pixel's radiance c (nits, before the exposure scale u_clip.w).
+// A surface pixel's radiance c (nits, before the exposure scale u_clip.w); a textured
+// RectLight face nearer than the surface (RECT_EMITTERS_SEEN) replaces it.
 void write_lighting(ivec2 px, Surface s, vec3 c) {
+#ifdef RECT_EMITTERS_SEEN
+    vec3 O, D, rad;
+    camera_ray(vec2(px) + 0.5, O, D);
+    if (rect_emitter_seen(O, D, dot(s.P - O, D), rad)) c = rad;
+#endif
     o_color = vec4(sanitize_radiance(c * u_clip.w), 1.0);
 #ifdef TAA_DEMOD_OUT
     write_demod(px, o_color, demod_albedo_of(s.diffuse, s.f0));

@@ -8,7 +8,7 @@
 struct Light {
     vec4 pos_range;     // xyz position (m), w influence radius (m)
     vec4 axis_emit;     // xyz emission axis (light -Z, unit), w emission model (0 iso, 1 cosine, 2 cylinder)
-    vec4 tangent_type;  // xyz light +X (unit), w light type code
+    vec4 tangent_tex;   // xyz light +X (unit), w RectLight texture layer (-1 none)
     vec4 intensity;     // rgb peak intensity (cd) before IES, w luminous weight (lm) for big-tile pdf
     vec4 cone;          // x cos(cutoff), y cutoff (rad), z smooth start (rad), w focus exponent
     vec4 tint_ies;      // rgb focusTint, w IES layer (-1 none)
@@ -45,9 +45,9 @@ float light_shape_scalar(Light L, vec3 w) {
 #endif
 #ifdef HAS_IES
     if (L.tint_ies.w >= 0.0) {
-        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_type.xyz);  // light +Y = Z x X
+        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_tex.xyz);  // light +Y = Z x X
         shape *= ies_table(int(L.tint_ies.w), L.ies_shadow.y, c,
-                           dot(w, L.tangent_type.xyz), dot(w, bitangent));
+                           dot(w, L.tangent_tex.xyz), dot(w, bitangent));
     }
 #endif
     return shape;
@@ -58,7 +58,7 @@ float light_shape_scalar(Light L, vec3 w) {
 float emission_shape(Light L, vec3 w) {
     if (L.axis_emit.w == EMIT_COSINE) return max(dot(w, L.axis_emit.xyz), 0.0);
     if (L.axis_emit.w == EMIT_CYLINDER) {
-        float ca = dot(w, L.tangent_type.xyz);
+        float ca = dot(w, L.tangent_tex.xyz);
         return sqrt(max(1.0 - ca * ca, 0.0));
     }
     return 1.0;

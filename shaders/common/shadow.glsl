@@ -161,7 +161,7 @@ vec2 r2_point(int k, vec2 u0) {
 // rect and disk uniformly by area; a sphere's silhouette disk facing Pb; a cylinder's
 // strip (its length x its diameter) facing Pb. C: the captured centre.
 vec3 light_sample_point(Light L, vec3 C, vec3 Pb, vec2 u) {
-    vec3 X = L.tangent_type.xyz;
+    vec3 X = L.tangent_tex.xyz;
     float kind = L.area.z;
     if (kind == AREA_RECT) {
         return C + X * (L.area.x * (2.0 * u.x - 1.0)) + light_bitangent(L) * (L.area.y * (2.0 * u.y - 1.0));
@@ -295,8 +295,9 @@ bool area_blocker_search(Light L, ShadowMap S, vec3 Pb, vec3 N, float dist, floa
 
 // Visibility of area light L from the biased receiver Pb (normal N): the weighted
 // fraction of AREA_SHADOW_POINTS light points (R2 set shifted by u0) whose segments are
-// unoccluded; weights are each point's diffuse contribution cos_r (cos_e) / d^2, so
-// points below the receiver's horizon (or behind a one-sided emitter) do not count.
+// unoccluded; weights are each point's diffuse contribution cos_r (cos_e) / d^2 (x the
+// texture's luminance on a textured rect), so points below the receiver's horizon (or
+// behind a one-sided emitter) do not count.
 float shadow_area(Light L, ShadowMap S, vec3 Pb, vec3 N, vec2 u0, float dist) {
     vec3 C = S.pos_range.xyz;
 #if LIM_AREA_SHADOW_SEARCH > 0
@@ -313,6 +314,13 @@ float shadow_area(Light L, ShadowMap S, vec3 Pb, vec3 N, vec2 u0, float dist) {
         vec3 w = d * inversesqrt(dd);
         float wt = max(dot(N, w), 0.0) / dd;
         if (planar) wt *= max(-dot(Z, w), 0.0);
+#ifdef RECT_TEXTURES
+        // A textured rect: each point weighs its texture's luminance too (the texture
+        // at the points' spacing), so a dark part's shadow does not count.
+        if (L.tangent_tex.w >= 0.0 && L.area.z == AREA_RECT)
+            wt *= dot(rect_tex_at(L.tangent_tex.w, u, rect_tex_max_lod()
+                                  - 0.5 * log2(float(AREA_SHADOW_POINTS))), LUMINANCE_REC709);
+#endif
         if (wt <= 0.0) continue;
         ws += wt;
         float tj = 1.0 - fract(u0.y + 0.6180340 * float(k));

@@ -11,7 +11,10 @@ nothing but the USD file and the UsdLux conventions:
 * radiance ``L = intensity * 2^exposure * color`` (nits), divided by the emitter's
   surface area when ``normalize`` is on; rect and disk emit from their -Z face only
   (one-sided Lambertian emitters); the cylinder from its side (no caps);
-* a point light (``treatAsPoint``) has intensity ``L * pi r^2`` (cd).
+* a point light (``treatAsPoint``) has intensity ``L * pi r^2`` (cd);
+* a RectLight's ``inputs:texture:file``: one constant rectangle of L x texel per texel,
+  oriented as UsdLux says (decoded by ``scene/dome.py``'s reader: the file's decoding is
+  the one shared step).
 
 ``compare`` returns the per-pixel relative error on pixels brighter than 1 % of the
 floor's maximum, leaving out pixels the light's own shape covers in Mitsuba (ours does
@@ -282,8 +285,54 @@ def _light(prim: Usd.Prim, world: np.ndarray, key: str) -> dict:
     else:
         raise ValueError(f"{prim.GetPath()}: {t} not converted")
     shape["bsdf"] = black
-    shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": _radiance(prim, area)}}
+    rgb = _radiance(prim, area)
+    if t == "RectLight" and _rect_texture(prim) is not None:
+        return _textured_rect(prim, M, w, h, rgb, key)
+    shape["emitter"] = {"type": "area", "radiance": {"type": "rgb", "value": rgb}}
     return {key: shape}
+
+
+def _rect_texture(prim: Usd.Prim) -> np.ndarray | None:
+    """A RectLight's decoded ``inputs:texture:file`` (h, w, 3), None without one."""
+    a = prim.GetAttribute("inputs:texture:file")
+    asset = a.Get() if a and a.HasAuthoredValue() else None
+    path = asset.resolvedPath if asset is not None else ""
+    if not path:
+        return None
+    from ..scene.dome import _read_rgb
+
+    return _read_rgb(path, "").astype(np.float64)
+
+
+def _textured_rect(
+    prim: Usd.Prim, M: mi.ScalarTransform4f, w: float, h: float, rgb: list[float], key: str
+) -> dict:
+    """A textured RectLight as one constant rectangle emitter per texel (at most 32 x 32):
+    UsdLux puts the image's first column on the rect's +X edge and its top row on +Y.
+    (A Mitsuba ``bitmap`` radiance rendered black under the ``direct`` integrator's
+    emitter sampling in Mitsuba 3.9.)"""
+    img = _rect_texture(prim)
+    assert img is not None
+    ny, nx = img.shape[:2]
+    if nx > 32 or ny > 32:
+        raise ValueError(f"{prim.GetPath()}: a rect texture over 32 x 32 texels not converted")
+    black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+    out = {}
+    for j in range(ny):
+        for i in range(nx):
+            cx, cy = w / 2 - (i + 0.5) * w / nx, h / 2 - (j + 0.5) * h / ny
+            xf = mi.ScalarTransform4f().translate([cx, cy, 0.0])
+            out[f"{key}_{j}_{i}"] = {
+                "type": "rectangle",
+                "to_world": M @ xf @ mi.ScalarTransform4f().scale([w / nx / 2, h / ny / 2, 1.0]),
+                "flip_normals": True,
+                "bsdf": black,
+                "emitter": {
+                    "type": "area",
+                    "radiance": {"type": "rgb", "value": [float(v) for v in img[j, i] * rgb]},
+                },
+            }
+    return out
 
 
 def _envmap(prim: Usd.Prim, world: np.ndarray) -> dict:

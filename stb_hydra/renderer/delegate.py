@@ -1,7 +1,8 @@
 """Render delegate: the prim factory and the owner of render-side resources.
 
 ``RenderDelegate`` is the CPU half (no GL): it creates render prims, owns the
-:class:`LightTable` and the IES profile registry, and tracks what changed.
+:class:`LightTable` and the IES profile and RectLight texture registries, and tracks
+what changed.
 ``render.gl_delegate.GLRenderDelegate`` adds the GPU resources and the real
 ``commit_resources()`` upload.
 """
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits
 from ..scene.prims import LightPrim
@@ -17,8 +19,9 @@ from .light_table import LightTable
 from .render_prims import CameraSprim, LightSprim, MaterialSprim, MeshRprim, RenderPrim
 
 
-class IesRegistry:
-    """IES profiles in use: resolved path -> texture-array layer (refcounted)."""
+class LayerRegistry:
+    """Files in use by lights: key (an IES profile's resolved path, a RectLight
+    texture's path and colour space) -> texture-array layer (refcounted)."""
 
     def __init__(self) -> None:
         self.layers: dict[str, int] = {}
@@ -45,12 +48,29 @@ class IesRegistry:
                 self.version += 1
 
 
+#: The IES profiles' registry (its original name).
+IesRegistry = LayerRegistry
+
+
+def rect_texture_key(tex: tuple[str, str]) -> str:
+    """Registry key of a RectLight texture (``LightPrim.rect_texture``)."""
+    return tex[0] + "\n" + tex[1]
+
+
+def rect_texture_of(key: str) -> tuple[str, str]:
+    """``LightPrim.rect_texture`` of a registry key."""
+    path, _, space = key.partition("\n")
+    return path, space
+
+
 class RenderDelegate:
     """CPU render delegate: prim factory + light table + resource bookkeeping."""
 
     def __init__(self) -> None:
         self.light_table = LightTable()
-        self.ies = IesRegistry()
+        self.ies = LayerRegistry()
+        #: RectLight textures in use (issue 37): layers of the rect texture array.
+        self.rect_textures = LayerRegistry()
         self.meshes: dict[str, MeshRprim] = {}
         self.cameras: dict[str, CameraSprim] = {}
         self.materials: dict[str, MaterialSprim] = {}
@@ -58,6 +78,7 @@ class RenderDelegate:
         self.warnings: list[str] = []
         self._warned: set[str] = set()
         self._light_ies: dict[str, str] = {}
+        self._light_rect: dict[str, str] = {}
 
     # -- prim factory (Hydra: CreateRprim / CreateSprim) --
     def create_prim(self, prim_type: str, path: str) -> RenderPrim | None:
@@ -85,6 +106,19 @@ class RenderDelegate:
 
     # -- hooks used by render prims --
     def write_light(self, row: int, lp: LightPrim) -> None:
+        layer = self._ies_layer(lp)
+        self.light_table.write(row, lp, layer, self._rect_layer(lp))
+
+    def write_lights(self, rows: list[int], lps: list[LightPrim]) -> None:
+        """``write_light`` for many lights at once (one light-table write)."""
+        layers = [self._ies_layer(lp) for lp in lps]
+        tex = [self._rect_layer(lp) for lp in lps]
+        self.light_table.write_many(
+            np.asarray(rows, dtype=np.int64), lps, np.asarray(layers), np.asarray(tex)
+        )
+
+    def _ies_layer(self, lp: LightPrim) -> int:
+        """The IES layer of ``lp`` (-1 none), its previous profile released."""
         layer = -1
         old = self._light_ies.pop(lp.path, None)
         if old is not None and old != lp.ies_file:
@@ -92,25 +126,34 @@ class RenderDelegate:
         if lp.ies_file:
             layer = self.ies.acquire(lp.ies_file, lp.path)
             self._light_ies[lp.path] = lp.ies_file
-        self.light_table.write(row, lp, layer)
+        return layer
 
-    def write_lights(self, rows: list[int], lps: list[LightPrim]) -> None:
-        """``write_light`` for many lights at once (one light-table write)."""
-        layers = []
-        for lp in lps:
-            layer = -1
-            old = self._light_ies.pop(lp.path, None)
-            if old is not None and old != lp.ies_file:
-                self.ies.release_user(lp.path)
-            if lp.ies_file:
-                layer = self.ies.acquire(lp.ies_file, lp.path)
-                self._light_ies[lp.path] = lp.ies_file
-            layers.append(layer)
-        self.light_table.write_many(np.asarray(rows, dtype=np.int64), lps, np.asarray(layers))
+    def _rect_layer(self, lp: LightPrim) -> int:
+        """The RectLight texture layer of ``lp`` (-1 none: it emits its mean), its
+        previous texture released; past ``limits.MAX_RECT_TEXTURES`` textures the light
+        emits its mean (one warning)."""
+        key = rect_texture_key(lp.rect_texture) if lp.rect_texture is not None else None
+        old = self._light_rect.pop(lp.path, None)
+        if old is not None and old != key:
+            self.rect_textures.release_user(lp.path)
+        if key is None:
+            return -1
+        layer = self.rect_textures.acquire(key, lp.path)
+        self._light_rect[lp.path] = key
+        if layer >= limits.MAX_RECT_TEXTURES:
+            self.warn_once(
+                "rect_textures",
+                f"more than {limits.MAX_RECT_TEXTURES} RectLight textures: <{lp.path}> and "
+                "others emit their texture's mean",
+            )
+            return -1
+        return layer
 
     def release_light(self, path: str) -> None:
         if self._light_ies.pop(path, None) is not None:
             self.ies.release_user(path)
+        if self._light_rect.pop(path, None) is not None:
+            self.rect_textures.release_user(path)
 
     def release_mesh(self, path: str) -> None:
         pass

@@ -23,6 +23,7 @@ import numpy as np
 from .. import limits
 from ..scene import prims
 from ..scene.locators import DirtyBits as D
+from . import shader_constants as sc
 from .delegate import RenderDelegate
 from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
@@ -113,6 +114,11 @@ class GLRenderDelegate(RenderDelegate):
         self.dome_env = DomeEnvironment(ctx)
         self._ies_version = -1
         self.ies_layer_count = 0
+        #: RectLight textures (issue 37 item 3): one mipmapped RGB16F layer each
+        #: (``scene/rect_texture.py``), bound as u_rect_tex.
+        self.rect_texture_array: moderngl.TextureArray | None = None
+        self._rect_version = -1
+        self._seen_rects: tuple[tuple[int, int, bool], np.ndarray] | None = None
         self.scene_bounds = (np.zeros(3), np.zeros(3))
         self.stats = {
             "geometry_uploads": 0,
@@ -169,6 +175,8 @@ class GLRenderDelegate(RenderDelegate):
             self._age_batches()
         if self.ies.version != self._ies_version:
             self._upload_ies()
+        if self.rect_textures.version != self._rect_version:
+            self._upload_rect_textures()
         super().commit_resources()
 
     def _upload_geometry(
@@ -536,6 +544,74 @@ class GLRenderDelegate(RenderDelegate):
     def has_ies(self) -> bool:
         return self.ies_texture is not None
 
+    def _upload_rect_textures(self) -> None:
+        """(Re)build the RectLight texture array from the registry: layer k holds
+        ``scene.rect_texture.load_rect_texture``'s layer and its mip chain (an
+        unreadable file: ones, i.e. the mean)."""
+        from ..scene.rect_texture import load_rect_texture
+        from .delegate import rect_texture_of
+
+        self._rect_version = self.rect_textures.version
+        if self.rect_texture_array is not None:
+            self.rect_texture_array.release()
+            self.rect_texture_array = None
+        layers = {k: v for k, v in self.rect_textures.layers.items()}
+        n = min(max(layers.values(), default=-1) + 1, limits.MAX_RECT_TEXTURES)
+        if n == 0:
+            return
+        size = limits.RECT_TEXTURE_PX
+        data = np.ones((n, size, size, 3), np.float16)
+        for key, layer in layers.items():
+            if layer >= n:
+                continue
+            try:
+                tex = load_rect_texture(*rect_texture_of(key))
+            except Exception:  # noqa: BLE001 - a file that vanished emits its mean
+                continue
+            data[layer] = np.minimum(tex.layer, limits.HALF_MAX)
+        arr = self.ctx.texture_array((size, size, n), 3, data.tobytes(), dtype="f2")
+        # GL's mip generation of a power-of-two layer: 2 x 2 box means, i.e. each texel of
+        # level k the mean of the texture over its part of the rect.
+        arr.build_mipmaps()
+        arr.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        arr.repeat_x = False
+        arr.repeat_y = False
+        self.rect_texture_array = arr
+
+    def seen_rect_emitters(self) -> np.ndarray:
+        """(k, 4, 4) float32 records of the textured RectLights the camera may see
+        (``u_rect_seen`` of common/rect_emitter.glsl, at most ``limits.MAX_RECT_TEXTURES``):
+        centre (m) + texture layer; +X half axis (m) + 0; +Y half axis (m) + 0; radiance
+        (nits: ``intensity`` x radiance per cd, the texture's mean) + 0. Render frame."""
+        t = self.light_table
+        key = (int(t.version), self._rect_version, self.rect_texture_array is not None)
+        if self._seen_rects is not None and self._seen_rects[0] == key:
+            return self._seen_rects[1]
+        n = t.n_rows
+        c = t.cols
+        rows = np.nonzero(
+            c["live"][:n]
+            & c["enabled"][:n]
+            & c["camera_visible"][:n]
+            & (c["texture_layer"][:n] >= 0)
+            & (c["area_kind"][:n] == sc.AREA_RECT)
+        )[0][: limits.MAX_RECT_TEXTURES]
+        if self.rect_texture_array is None:
+            rows = rows[:0]
+        out = np.zeros((len(rows), 4, 4), np.float32)
+        self._seen_rects = (key, out)
+        if not len(rows):
+            return out
+        X = c["tangent"][rows].astype(np.float64)
+        Z = -c["direction"][rows].astype(np.float64)  # light +Z (it emits along -Z)
+        Y = np.cross(Z, X)
+        out[:, 0, :3] = c["position"][rows]
+        out[:, 0, 3] = c["texture_layer"][rows]
+        out[:, 1, :3] = X * c["area_size"][rows, :1]
+        out[:, 2, :3] = Y * c["area_size"][rows, 1:2]
+        out[:, 3, :3] = c["intensity"][rows] * c["area_radiance"][rows, None]
+        return out
+
     def release(self) -> None:
         for g in self.geometry.values():
             self._release_geometry(g)
@@ -549,6 +625,8 @@ class GLRenderDelegate(RenderDelegate):
             self.light_ssbo.release()
         if self.ies_texture is not None:
             self.ies_texture.release()
+        if self.rect_texture_array is not None:
+            self.rect_texture_array.release()
         self.dome_env.release()
         self.geometry.clear()
         self.batches.clear()

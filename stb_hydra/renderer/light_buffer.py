@@ -142,7 +142,7 @@ def pack_lights(
     out[:, C.LIGHT_COL_AXIS : C.LIGHT_COL_AXIS + 3] = t.direction[rows]
     out[:, C.LIGHT_COL_EMISSION] = t.emission[rows]
     out[:, C.LIGHT_COL_TANGENT : C.LIGHT_COL_TANGENT + 3] = t.tangent[rows]
-    out[:, C.LIGHT_COL_TYPE] = t.type[rows]
+    out[:, C.LIGHT_COL_TEXTURE_LAYER] = t.texture_layer[rows]
     out[:, C.LIGHT_COL_INTENSITY : C.LIGHT_COL_INTENSITY + 3] = t.intensity[rows]
     out[:, C.LIGHT_COL_FLUX] = t.flux[rows]
     cut = t.cone_cutoff[rows]

@@ -43,6 +43,10 @@ _COLUMNS: dict[str, tuple[tuple[int, ...], type, object]] = {
     "ies_layer": ((), np.int32, -1),
     "ies_scale": ((), np.float32, 1.0),
     "ies_angle_scale": ((), np.float32, 0.0),
+    # RectLight texture (issue 37): layer of the delegate's rect texture array (-1:
+    # none; the light emits its mean, ``intensity``), and whether the camera sees it.
+    "texture_layer": ((), np.int32, -1),
+    "camera_visible": ((), np.bool_, True),
     "diffuse": ((), np.float32, 1.0),
     "specular": ((), np.float32, 1.0),
     "shadow_enable": ((), np.bool_, False),
@@ -181,8 +185,9 @@ class LightTable:
             c["version"][rows] = self.version
         return len(rows)
 
-    def write(self, row: int, lp: LightPrim, ies_layer: int = -1) -> None:
-        """Copy a light record into its row."""
+    def write(self, row: int, lp: LightPrim, ies_layer: int = -1, texture_layer: int = -1) -> None:
+        """Copy a light record into its row (``texture_layer``: its RectLight texture's
+        layer, -1 none)."""
         c = self.cols
         c["position"][row] = lp.position
         c["direction"][row] = lp.direction
@@ -211,6 +216,8 @@ class LightTable:
         c["ies_layer"][row] = ies_layer
         c["ies_scale"][row] = lp.ies_scale if ies_layer >= 0 else 1.0
         c["ies_angle_scale"][row] = lp.ies_angle_scale
+        c["texture_layer"][row] = texture_layer
+        c["camera_visible"][row] = lp.camera_visible
         c["diffuse"][row] = lp.diffuse
         c["specular"][row] = lp.specular
         c["shadow_enable"][row] = lp.shadow_enable
@@ -232,9 +239,16 @@ class LightTable:
         self.version += 1
         c["version"][row] = self.version
 
-    def write_many(self, rows: np.ndarray, lps: list[LightPrim], ies_layers: np.ndarray) -> None:
-        """``write(rows[i], lps[i], ies_layers[i])`` for every i, column by column (the
-        first sync of many lights: no per-light numpy calls). One version for all."""
+    def write_many(
+        self,
+        rows: np.ndarray,
+        lps: list[LightPrim],
+        ies_layers: np.ndarray,
+        texture_layers: np.ndarray | None = None,
+    ) -> None:
+        """``write(rows[i], lps[i], ies_layers[i], texture_layers[i])`` for every i,
+        column by column (the first sync of many lights: no per-light numpy calls).
+        One version for all."""
         n = len(lps)
         if n == 0:
             return
@@ -272,6 +286,8 @@ class LightTable:
         c["ies_layer"][rows] = layers
         c["ies_scale"][rows] = np.where(layers >= 0, np.array(col("ies_scale")), 1.0)
         c["ies_angle_scale"][rows] = col("ies_angle_scale")
+        c["texture_layer"][rows] = -1 if texture_layers is None else texture_layers
+        c["camera_visible"][rows] = col("camera_visible")
         c["diffuse"][rows] = col("diffuse")
         c["specular"][rows] = col("specular")
         c["shadow_enable"][rows] = col("shadow_enable")

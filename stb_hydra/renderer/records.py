@@ -53,6 +53,8 @@ class InViewLights:
     rows: np.ndarray
     has_cones: bool = False
     has_ies: bool = False
+    #: Some of them is a textured RectLight (``RECT_TEXTURES``).
+    has_rect_textures: bool = False
     point_count: int = 0
     sphere_count: int = 0
     wide_sphere_count: int = 0

@@ -79,7 +79,8 @@ TEX_UNIT_HIZ = 12
 LIGHT_LAYOUT: tuple[tuple[str, tuple[str, str, str, str]], ...] = (
     ("pos_range", ("position", "position", "position", "range")),
     ("axis_emit", ("axis", "axis", "axis", "emission")),
-    ("tangent_type", ("tangent", "tangent", "tangent", "type")),
+    # w: the RectLight texture layer (u_rect_tex, common/rect_texture.glsl; -1 none).
+    ("tangent_tex", ("tangent", "tangent", "tangent", "texture_layer")),
     ("intensity", ("intensity", "intensity", "intensity", "flux")),
     ("cone", ("cos_cutoff", "cutoff", "cone_start", "focus")),
     ("tint_ies", ("focus_tint", "focus_tint", "focus_tint", "ies_layer")),
@@ -110,7 +111,7 @@ LIGHT_COL_RANGE = LIGHT_COLUMNS["range"]  # 3
 LIGHT_COL_AXIS = LIGHT_COLUMNS["axis"]  # 4:7
 LIGHT_COL_EMISSION = LIGHT_COLUMNS["emission"]  # 7
 LIGHT_COL_TANGENT = LIGHT_COLUMNS["tangent"]  # 8:11
-LIGHT_COL_TYPE = LIGHT_COLUMNS["type"]  # 11
+LIGHT_COL_TEXTURE_LAYER = LIGHT_COLUMNS["texture_layer"]  # 11
 LIGHT_COL_INTENSITY = LIGHT_COLUMNS["intensity"]  # 12:15
 LIGHT_COL_FLUX = LIGHT_COLUMNS["flux"]  # 15
 LIGHT_COL_COS_CUTOFF = LIGHT_COLUMNS["cos_cutoff"]  # 16
@@ -218,6 +219,10 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
         "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),
         "LIM_CUBE_FACES": str(limits.CUBE_FACES),
+        "LIM_RECT_TEXTURES": str(limits.MAX_RECT_TEXTURES),
+        "LIM_RECT_TEXTURE_GRID": str(limits.RECT_TEXTURE_GRID),
+        "LIM_RECT_TEXTURE_GRID_RT": str(limits.RECT_TEXTURE_GRID_REALTIME),
+        "LIM_RECT_TEXTURE_FOOTPRINT": f"{limits.RECT_TEXTURE_FOOTPRINT:.4f}",
         # binding points
         "UBO_FRAME": str(UBO_FRAME),
         "SSBO_LIGHTS": str(SSBO_LIGHTS),

@@ -309,25 +309,6 @@ def _read_rgb(path: str, color_space: str) -> np.ndarray:
     return np.minimum(rgb, limits.DOME_MAX_RADIANCE).astype(np.float32)
 
 
-_mean_cache: dict[tuple[str, float], np.ndarray] = {}
-
-
-def texture_mean(path: str) -> np.ndarray:
-    """Plain mean RGB (linear Rec.709) of an image file (a RectLight's texture, which
-    covers the rect uniformly), cached by path and mtime. Raises DomeTextureError."""
-    try:
-        key = (path, os.path.getmtime(path))
-    except OSError:
-        raise DomeTextureError("file not found") from None
-    hit = _mean_cache.get(key)
-    if hit is None:
-        hit = _read_rgb(path, "").astype(np.float64).mean(axis=(0, 1))
-        if len(_mean_cache) >= limits.DOME_CACHE_ENTRIES:
-            _mean_cache.pop(next(iter(_mean_cache)))
-        _mean_cache[key] = hit
-    return hit
-
-
 def load_dome_map(path: str, fmt: str, rotation: np.ndarray, color_space: str = "") -> DomeMap:
     """The render-frame lat-long map of dome texture ``path`` (format ``fmt``, dome
     texture frame -> render frame ``rotation``), cached by file, mtime, format,

@@ -23,6 +23,9 @@ Conventions (STB_SPEC.md "Light units", UsdLux 2025 docs):
   angle is 0 or ``normalize`` is on. DomeLight: radiance L (nits) times its
   texture (``scene/dome.py``; ``intensity`` carries L times the texture's
   solid-angle mean); ``normalize`` has no effect on a dome (it has no size).
+  RectLight ``inputs:texture:file``: the rect emits L times its texture
+  (``scene/rect_texture.py``: first image column on +X, top row on +Y);
+  ``intensity`` carries L times the texture's mean.
 * Positions/directions/lengths are in the render frame (Y up, metres).
 
 Bad input never raises: the light is disabled and a one-line warning naming the
@@ -917,18 +920,25 @@ def _light_texture(
 
 def _rect_texture_mean(lp: LightPrim, a: _Attrs, ctx: LightReadContext) -> np.ndarray:
     """Mean RGB of a RectLight's ``inputs:texture:file`` (decoded like material
-    textures): the rect is shaded as a uniform emitter of that colour and power (1
-    without a usable texture; a missing or unreadable one warns)."""
-    from . import dome
+    textures, ``scene/rect_texture.py``), recorded on ``lp.rect_texture`` so the rect
+    emits the texture itself (``lp.intensity`` keeps the mean: the single colour); 1
+    without a usable texture (a missing or unreadable one warns once: uniform white).
+    Also reads ``visibleInPrimaryRay`` (the camera sees the textured face)."""
+    from .rect_texture import load_rect_texture
 
+    lp.camera_visible = bool(a.get("visibleInPrimaryRay", True))
     asset, resolved = _light_texture(lp, a, ctx, "rect", "emitting uniform white")
     if not resolved:
         return np.ones(3)
+    attr = a.attr("inputs:texture:file") or a.attr("texture:file")
+    space = str(attr.GetColorSpace() or "") if attr is not None else ""
     try:
-        return dome.texture_mean(resolved)
+        tex = load_rect_texture(resolved, space)
     except Exception as exc:  # noqa: BLE001 - bad input must never crash
         _warn(lp, ctx, f"rect texture '{asset.path}' unreadable ({exc}); emitting white")
         return np.ones(3)
+    lp.rect_texture = (resolved, space)
+    return np.asarray(tex.mean, dtype=np.float64)
 
 
 def area_half_extent(lp: LightPrim) -> float:

@@ -7,10 +7,10 @@ is fetched once per light (one ``GetAttribute().Get()``), then every check, unit
 conversion and photometric integral runs on whole columns (the shaping integral once
 per distinct cone / focus / IES set-up). A light the bulk path does not model --
 mesh, distant, dome and portal lights, third-party light types, legacy un-namespaced
-inputs, and any light with an input that would warn (a wrong type, a non-finite or
-out-of-range value, an unresolvable or unusable IES file, a zero area, an overflowing
-intensity) -- is read by ``read_light``, so its warnings and fallbacks stay exactly
-those of the single-light reader.
+inputs, a textured RectLight, and any light with an input that would warn (a wrong
+type, a non-finite or out-of-range value, an unresolvable or unusable IES file, a zero
+area, an overflowing intensity) -- is read by ``read_light``, so its warnings and
+fallbacks stay exactly those of the single-light reader.
 
 Positions / directions are in the render frame (Y up, metres); intensities in cd
 along the axis; ranges in metres at camera exposure scale 1.
@@ -221,7 +221,7 @@ def read_lights(
         old = legacy.get(nm)
         if old is None:
             old = legacy[nm] = bool(nm & _LEGACY)
-        if old:
+        if old or "inputs:texture:file" in nm:  # a textured rect: read_light reads it
             continue
         bulk.append(i)
         types.append(t)

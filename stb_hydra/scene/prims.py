@@ -184,7 +184,12 @@ class LightPrim:
     #: RGB radiance (nits) per unit of ``dome_map``: ``intensity = dome_scale *
     #: dome_map.mean``.
     dome_scale: np.ndarray = field(default_factory=lambda: _ZERO3)
-    #: The camera sees the light (dome background; ``visibleInPrimaryRay``).
+    #: A RectLight's usable texture (``scene/rect_texture.py``): resolved path, colour
+    #: space; None without one (or when unreadable): the rect emits ``intensity``
+    #: uniformly. ``intensity`` carries the texture's mean either way.
+    rect_texture: tuple[str, str] | None = None
+    #: The camera sees the light (dome background, a textured rect's emitting face;
+    #: ``visibleInPrimaryRay``).
     camera_visible: bool = True
     #: Light-linking: False when either collection is not the default "everything".
     default_linking: bool = True

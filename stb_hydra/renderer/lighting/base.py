@@ -22,6 +22,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import moderngl
+import numpy as np
 
 from ..dome_shadows import SkyOcclusion
 from ..fullscreen import draw_fullscreen
@@ -162,6 +163,10 @@ class LightingMethod:
     #: (``DOME_OCCLUSION``, ``renderer/dome_shadows.SkyOcclusion``): every method but
     #: the reference, which samples the dome with shadow maps of its own.
     dome_occlusion: ClassVar[bool] = True
+    #: Textured RectLights are integrated cell by cell (``RECT_TEXTURE_EXACT``,
+    #: common/rect_texture_shading.glsl): the exact methods, which must equal the
+    #: reference; the others use the textured-LTC lookup.
+    exact_rect_textures: ClassVar[bool] = False
 
     def __init__(
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
@@ -232,6 +237,9 @@ class LightingMethod:
             defines["HAS_DOME_MAP"] = True  # the textured dome (common/dome.glsl)
             if self._sky_occluded(frame):
                 defines["DOME_OCCLUSION"] = True  # common/dome_occlusion.glsl
+        d = self.delegate
+        if d is not None and len(d.seen_rect_emitters()):
+            defines["RECT_EMITTERS_SEEN"] = True  # common/rect_emitter.glsl
         if frame.get(LightBuffer).links:
             defines["HAS_LINKS"] = True  # common/links.glsl
         if self.clearcoat:
@@ -246,6 +254,10 @@ class LightingMethod:
                 self.light_models |= light_models(lights)
                 for m in light_loops(self.light_models, self.clearcoat):
                     defines[LIGHT_LOOP_DEFINES[m]] = True
+            if lights.has_rect_textures and d is not None and d.rect_texture_array is not None:
+                defines["RECT_TEXTURES"] = True  # common/rect_texture_shading.glsl
+                if self.exact_rect_textures:
+                    defines["RECT_TEXTURE_EXACT"] = True
             if frame.get(LightBuffer).has_shadows:
                 defines["HAS_SHADOWS"] = True
                 if frame.settings.shadow_filter == "stochastic":
@@ -315,6 +327,18 @@ class LightingMethod:
             sky = self._sky.prepare(d, dist.dome, mask, dist.dome_sun, frame.sample_index)
             if sky is not None:
                 unit = self._sky.bind(prog, unit)
+        if d is not None and "u_rect_tex" in prog and d.rect_texture_array is not None:
+            d.rect_texture_array.use(unit)  # common/rect_texture.glsl
+            cast(moderngl.Uniform, prog["u_rect_tex"]).value = unit
+            unit += 1
+        if d is not None and "u_rect_seen_count" in prog:  # common/rect_emitter.glsl
+            seen = d.seen_rect_emitters()
+            set_uniform(prog, "u_rect_seen_count", len(seen))
+            if len(seen) and "u_rect_seen" in prog:
+                u = cast(moderngl.Uniform, prog["u_rect_seen"])
+                full = np.zeros((u.array_length, 4), np.float32)
+                full[: 4 * len(seen)] = seen.reshape(-1, 4)[: u.array_length]
+                u.write(full.tobytes())
         return unit
 
     def _sky_occluded(self, frame: FrameContext) -> bool:

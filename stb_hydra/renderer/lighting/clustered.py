@@ -138,6 +138,7 @@ class ClusteredLighting(LightingMethod):
     name = "clustered"
     points_first = True
     area_shadows_per_frame = True
+    exact_rect_textures = True
     options = OPTIONS
 
     @classmethod

@@ -77,6 +77,7 @@ class LightTreeLighting(LightingMethod):
     points_first = True
     options = OPTIONS
     area_shadows_per_frame = True
+    exact_rect_textures = True
 
     @classmethod
     def check_options(cls, o: dict) -> None:

@@ -21,6 +21,7 @@ class ReferenceLighting(LightingMethod):
     points_first = True
     area_shadows_per_frame = True
     dome_occlusion = False  # the dome is importance-sampled with its own shadow maps
+    exact_rect_textures = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)

@@ -165,6 +165,7 @@ class TiledLighting(LightingMethod):
     name = "tiled"
     points_first = True
     area_shadows_per_frame = True
+    exact_rect_textures = True
     options = OPTIONS
     hiz_level = int(math.log2(limits.TILED_TILE_PX))
 
