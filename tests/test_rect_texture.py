@@ -246,6 +246,41 @@ def test_texture_edit_resyncs(gl_ctx, tmp_path):
     assert np.abs(after - before[:, ::-1]).max() <= 1e-4 * before.max()
 
 
+def test_texture_file_rewritten_on_disk_reloads(gl_ctx, tmp_path):
+    """The previewer's watcher path (``Engine.reload_files``): the texture file itself
+    is rewritten with the mirrored image; the light is read again and the bright side
+    of the floor moves from +X to -X."""
+    import os
+    import time
+
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    tex = half_texture(tmp_path, True)
+    stage = floor_stage(rect_light(tex))
+    p = plane_points(stage, 64, 36)
+    right = np.argmin(np.hypot(p[..., 0] - 1.0, p[..., 2]))
+    left = np.argmin(np.hypot(p[..., 0] + 1.0, p[..., 2]))
+    settings = RenderSettings(width=64, height=36, lighting="stb", temporal="off")
+    eng = Engine(stage, settings, ctx=gl_ctx)
+    try:
+        eng.request_aovs({"color"})
+        eng.render(None)
+        before = eng.aovs["color"][..., 1].copy()
+        assert os.path.realpath(tex) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
+        (tmp_path / "m").mkdir()
+        os.replace(half_texture(tmp_path / "m", False), tex)
+        st = os.stat(tex)  # a new mtime even on a coarse clock (the texture cache's key)
+        os.utime(tex, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
+        assert eng.reload_files({tex}) == 1
+        eng.render(None)
+        after = eng.aovs["color"][..., 1].copy()
+    finally:
+        eng.release()
+    assert before.flat[right] > 3.0 * before.flat[left]
+    assert after.flat[left] > 3.0 * after.flat[right]
+
+
 # --- against Mitsuba 3 ----------------------------------------------------------------------
 
 

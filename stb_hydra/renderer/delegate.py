@@ -38,6 +38,14 @@ class LayerRegistry:
         self.refs.setdefault(ies_path, set()).add(user)
         return layer
 
+    def touch(self, key: str) -> bool:
+        """The file behind ``key`` changed on disk: bump the version (the delegate
+        re-uploads the array). False when no light uses it."""
+        if key not in self.layers:
+            return False
+        self.version += 1
+        return True
+
     def release_user(self, user: str) -> None:
         for path in [p for p, users in self.refs.items() if user in users]:
             users = self.refs[path]

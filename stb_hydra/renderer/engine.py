@@ -32,6 +32,7 @@ from ..scene import prims
 from ..scene.stage_io import StageOpenError, open_stage
 from ..scene.stage_scene_index import StageSceneIndex
 from .camera import ViewSetup, framing_camera, view_setup
+from .delegate import rect_texture_of
 from .frame import (
     TEMPORAL_MODES,
     FrameContext,
@@ -406,6 +407,10 @@ class Engine:
         for light, file in self.delegate.light_texture_files().items():
             if os.path.realpath(file) in real and self.render_index.mark_dirty(light):
                 n += 1
+        rects = self.delegate.rect_textures  # a RectLight's layer of the texture array
+        for key in list(rects.layers):
+            if os.path.realpath(rect_texture_of(key)[0]) in real:
+                rects.touch(key)
         return n
 
     def request_aovs(self, names: Iterable[str]) -> None:
