@@ -509,7 +509,7 @@ class GLRenderDelegate(RenderDelegate):
         return True
 
     def _upload_ies(self) -> None:
-        from ..scene.lights import load_ies_cached
+        from ..scene.light_shaping import load_ies_cached
 
         layers = self.ies.layers
         n = max(layers.values(), default=-1) + 1

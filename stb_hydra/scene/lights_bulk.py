@@ -29,12 +29,11 @@ from pxr import Gf, Sdf, Usd
 from .. import limits
 from . import prims
 from .ies import IesError
+from .light_shaping import ies_stats, shape_integral
 from .lights import (
     _LUMA,
     LEGACY_INPUTS,
     LightReadContext,
-    _ies_stats,
-    _shape_integral,
     blackbody_rgb,
     influence_range,
     read_light,
@@ -403,7 +402,7 @@ def _read_group(
     for i, k in enumerate(keys):
         v = cache.get(k)
         if v is None:
-            v = cache[k] = _shape_integral(*k)
+            v = cache[k] = shape_integral(*k)
         integ[i], peak[i] = v
     with np.errstate(over="ignore", invalid="ignore"):
         flux = iy * ies_scale * integ
@@ -506,7 +505,7 @@ def _ies_one(
     except IesError:
         col.bad[i] = True
         return
-    mx, power = _ies_stats(resolved, prof)
+    mx, power = ies_stats(resolved, prof)
     if not (math.isfinite(mx) and mx > 0):
         col.bad[i] = True
         return

@@ -20,7 +20,8 @@ from pxr import Sdf, Usd
 from .. import limits
 from ..scene import prims
 from ..scene.ies import IesError, IesProfile
-from ..scene.lights import LEGACY_INPUTS, ies_theta, load_ies_cached
+from ..scene.light_shaping import ies_theta, load_ies_cached
+from ..scene.lights import LEGACY_INPUTS
 from .common import all_finite, authored_values, components, finding, fmt_times, fmt_value
 from .findings import Finding
 
