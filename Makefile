@@ -9,6 +9,12 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.stb_installed
 OUT    ?= out
 DEMO_FLAGS ?= --lighting stb --accumulate 16
+# `make test` runs pytest on pytest-xdist workers, whole modules per worker: by default
+# (auto) one per core, at most 2 (the machine measured, docs/TESTING.md); PYTEST_XDIST=N
+# runs N, PYTEST_XDIST=0 runs serially in one process.
+PYTEST_XDIST ?= auto
+PYTEST_WORKERS := $(if $(filter auto,$(PYTEST_XDIST)),$(shell n=$$(nproc 2>/dev/null || echo 1); [ $$n -gt 2 ] && n=2; echo $$n),$(PYTEST_XDIST))
+PYTEST_PAR := $(if $(filter-out 0 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadfile)
 
 .PHONY: demo test lint bench clean sysdeps
 
@@ -31,7 +37,7 @@ test: sysdeps $(STAMP)
 	$(VENV)/bin/ruff format --check stb_hydra tests tools
 	$(VENV)/bin/lint-imports
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q -p no:cacheprovider --durations=25
+	$(PY) -m pytest -q -p no:cacheprovider --durations=25 $(PYTEST_PAR)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check stb_hydra tests tools

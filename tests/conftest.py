@@ -27,10 +27,21 @@ def repo() -> Path:
     return REPO
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _private_bake_cache(tmp_path_factory):
+    """The xatlas unwrap cache (``STB_BAKE_CACHE``, default ~/.cache) in this session's
+    temporary folder: a bake test never reads an entry of an earlier run or of another
+    ``pytest -n`` worker, and the CLI subprocesses inherit it."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("STB_BAKE_CACHE", str(tmp_path_factory.mktemp("bake_cache")))
+        yield
+
+
 @pytest.fixture(scope="session")
 def gl_ctx():
     """The process-wide OpenGL 4.3+ context (EGL: llvmpipe here, NVIDIA on GPU hosts).
-    One context per process: the engine and every GL test share it."""
+    One context per process: the engine and every GL test share it; under
+    ``pytest -n`` (pytest-xdist) each worker process has its own."""
     from stb_hydra.renderer.gl import get_context
 
     return get_context()
@@ -43,3 +54,16 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     seed = getattr(config.option, "randomly_seed", None)
     if seed is not None and getattr(config.option, "randomly_reorganize", True):
         terminalreporter.write_line(f"test order: --randomly-seed={seed}")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config, items):
+    """Under ``pytest -n`` (docs/TESTING.md): the modules that hold a test marked
+    ``slow`` go first, whole (a stable sort: the modules and the tests in each keep
+    pytest-randomly's order). ``make test`` hands out whole modules (``--dist
+    loadfile``: module fixtures built once) in this order, so no long module starts
+    last while the other worker sits idle. A serial run keeps the random order."""
+    if not hasattr(config, "workerinput"):  # not an xdist worker
+        return
+    heavy = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in heavy)

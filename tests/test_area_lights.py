@@ -236,6 +236,7 @@ def _segments_hit_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarr
     return (tmin <= tmax) & (tmax > 0) & (tmin < 1)
 
 
+@pytest.mark.slow
 def test_rect_soft_shadow_matches_exact_visibility():
     """The 1 x 0.5 m rect 0.2 m above the 0.4 m box (area_scenes "rect"; as large as its
     distance to the blocker: a skewed, almost all-penumbra shadow). Every visible floor
@@ -277,6 +278,7 @@ def test_rect_soft_shadow_matches_exact_visibility():
     assert np.isfinite(ours).all()
 
 
+@pytest.mark.slow
 def test_reference_penumbra_converges_when_accumulating():
     """Issue 33 item 3: the reference's area-light penumbrae rotate their point set per
     accumulated frame, so ``accumulate`` converges: against the exact visibility of
@@ -322,6 +324,7 @@ def test_reference_penumbra_converges_when_accumulating():
 # --- STB ------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_stb_unbiased_on_area_lights():
     """24 area lights of all four types: 64 STB frames (no weight cap) against the
     reference (relMSE <= 5e-3) -- the targets use the area irradiance, so a light whose

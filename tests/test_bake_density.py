@@ -242,6 +242,7 @@ W, H = 160, 90
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_ground_boxes_and_64_static_lights_bake_like_the_reference(tmp_path, gl_ctx):
     """Issue 35's acceptance at test size: a 40 m ground quad, 24 ``UsdGeom.Cube`` boxes
     and 64 shadowed static sphere lights (``stagegen.bake_yard_usda``), baked at

@@ -7,6 +7,7 @@ pieces' authored positions put the squares 0.0625 m apart around the origin)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from pxr import Usd
 
 from stb_hydra.renderer.engine import Engine
@@ -16,6 +17,7 @@ SQUARE = 0.0625  # m: the rooks stand at x = +-0.219 = +-3.5 squares
 W = H = 128  # 0.5 m x 0.5 m: 16 px a square
 
 
+@pytest.mark.slow
 def test_chess_board_shows_its_squares_and_loads_without_warnings(tmp_path, testdata, gl_ctx):
     chess = testdata / "scenes" / "OpenChessSet" / "chess_set.usda"
     scene = tmp_path / "top.usda"

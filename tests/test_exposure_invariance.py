@@ -75,6 +75,7 @@ def render(text: str, method: str, frames: int) -> tuple[np.ndarray, list[float]
 
 
 @pytest.mark.parametrize(("method", "frames"), [("reference", 1), ("clustered", 1), ("stb", 64)])
+@pytest.mark.slow
 def test_display_image_is_invariant_to_the_unit_scale(method: str, frames: int):
     base, r_base = render(scene(1.0, 0.0), method, frames)
     dim, r_dim = render(scene(1e-3, STOPS), method, frames)

@@ -184,6 +184,7 @@ def test_ies_subnormal_angle_step_is_rejected(testdata):
     assert np.isfinite(ok.flux()) and ok.flux() > 0
 
 
+@pytest.mark.slow
 def test_fuzz_tool_smoke(gl_ctx):
     """tools/fuzz.py end to end on a few inputs (the real run: docs/RELIABILITY.md)."""
     from tools import fuzz

@@ -141,6 +141,7 @@ def _xdo(display: str, *args: str) -> None:
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, scene, tmp_path):
     """One window: the converged view, a light switched off, an orbit, a method switch;
     then the window is captured with xwd while it rests and compared with the
@@ -201,6 +202,7 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_click_picks_and_alt_drag_tumbles_with_xdotool(display, scene, tmp_path):
     """Real mouse input: a click on the box selects it (ID buffer); Alt + left drag
     orbits the camera."""
@@ -248,6 +250,7 @@ def test_missing_stage_shows_the_error_in_the_window(display, tmp_path):
     assert img.std() > 5.0  # the error panel is drawn, not a blank window
 
 
+@pytest.mark.slow
 def test_broken_stage_opens_once_fixed_on_disk(display, tmp_path):
     """A stage that does not parse: the error is shown, the file is watched, and writing
     a good stage to it opens it in the same window."""

@@ -372,6 +372,7 @@ def test_stochastic_pcf_softens_but_agrees_away_from_edges(gl_ctx):
 
 
 @pytest.mark.gl
+@pytest.mark.slow
 def test_offline_render_captures_every_map_before_its_first_frame(gl_ctx):
     """``stb_hydra.render`` (like ``stb render``) ignores the real-time budget: its
     single frame equals a real-time engine's image once all maps are fresh, while

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import json
 
+import pytest
 
+
+@pytest.mark.slow
 def test_soak_short_variant_keeps_atlas_invariants(gl_ctx, tmp_path):
     from tools import soak
 

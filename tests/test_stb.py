@@ -129,6 +129,7 @@ def Mesh "Wall"
 """
 
 
+@pytest.mark.slow
 def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
     """One big tile, K = 16 streams, 32 lights: stream s = {s, 16 + (s + o) mod 16},
     o uniform per frame. A-Chao includes light l with probability
@@ -191,6 +192,7 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
         ("all", "clusters"),
     ],
 )
+@pytest.mark.slow
 def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile):
     """Weight cap off: the mean of M STB frames -> reference, error ~ 1/M; with all N
     samples per pixel, with quad/pixel selection (one of the N per quad/pixel) and with

@@ -30,6 +30,7 @@ def render(method: str, frames: int, **opts) -> np.ndarray:
         eng.release()
 
 
+@pytest.mark.slow
 def test_quad_terms_match_pixel_terms_at_depth_edges():
     ref = render("reference", 1)
     quad = render("stb", 16, N=4, K=64, shadow_res="quad")

@@ -93,6 +93,7 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({"reuse_candidates": 32, "reuse_k": 0, "reuse_target": "cheap"}, 3e-3),
     ],
 )
+@pytest.mark.slow
 def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol):
     """Weight cap off, balance-heuristic MIS: the mean of M frames converges to the
     closed form (150 lights > K, so the big tile's SRS is part of it), error ~ 1/M,

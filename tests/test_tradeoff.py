@@ -88,6 +88,7 @@ def read_csv(path):
         return list(csv.DictReader(f))
 
 
+@pytest.mark.slow
 def test_cli_quick_grid(scene_file, tmp_path):
     out = tmp_path / "out"
     rc = cli.main(
@@ -180,6 +181,7 @@ def test_cli_errors(argv, tmp_path, capsys):
     assert "stb: error:" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_moving_camera_scenario(tmp_path):
     """``--moving``: an orbit of the courtyard rendered per frame by the reference, raw
     STB, STB with taa and an exact method; taa must be steadier and closer than raw

@@ -545,6 +545,7 @@ def shrink(cmd: str, out: Path) -> list[str]:
 WHEEL_TESTED_VERBS = {"tradeoff", "bake", "preview"}
 
 
+@pytest.mark.slow
 def test_readme_commands_run(tmp_path):
     cmds = readme_commands()
     verbs = {shlex.split(c)[1] for c in cmds}
