@@ -373,21 +373,22 @@ def test_rotated_dome_matches_mitsuba(gl_ctx, tmp_path):
         assert p95 <= 0.15, f"{method}: p95 {p95:.4f}"
 
 
-def test_texture_edit_resyncs(gl_ctx, tmp_path):
-    """Authoring another file on inputs:texture:file re-reads the dome (scene index):
-    the half sky's dark underside lights up under a uniform grey map."""
+def _grey_edit(gl_ctx, tmp_path, edit) -> None:
+    """The half-sky sphere rendered, ``edit(stage, texture path, grey path, engine)``
+    swaps the half sky for a uniform grey map somehow, rendered again: the dark
+    underside (albedo (1 + n.y) / 2 <= 0.2 albedo there) lights up to albedo x 0.5."""
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
     half = write_exr(tmp_path / "halfsky.exr", half_sky())
-    grey = write_exr(tmp_path / "grey.exr", np.full((32, 64, 3), 0.5, np.float32))
+    grey = np.full((32, 64, 3), 0.5, np.float32)
     stage = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(half)))
     eng = Engine(stage, RenderSettings(width=W, height=H, lighting="stb"), ctx=gl_ctx)
     try:
         eng.request_aovs({"color"})
         eng.render(None)
         before = eng.aovs["color"][..., 1].copy()
-        stage.GetPrimAtPath("/Dome").GetAttribute("inputs:texture:file").Set(Sdf.AssetPath(grey))
+        edit(stage, half, grey, eng)
         eng.render(None)
         after = eng.aovs["color"][..., 1].copy()
     finally:
@@ -396,45 +397,37 @@ def test_texture_edit_resyncs(gl_ctx, tmp_path):
     n = sphere_normals(o, d)
     ny = np.nan_to_num(n[..., 1])
     low = interior(np.isfinite(n[..., 0])) & (ny < -0.6)
-    # half sky: albedo (1 + n.y) / 2 <= 0.1 there
     expect = ALBEDO * (1.0 + ny[low]) / 2.0
     assert float(np.median(np.abs(before[low] - expect))) < 0.01
     # uniform 0.5: albedo x 0.5 everywhere (the display AOV is linear here)
     assert float(np.median(after[low])) == pytest.approx(ALBEDO * 0.5, rel=0.05)
 
 
+def test_texture_edit_resyncs(gl_ctx, tmp_path):
+    """Authoring another file on inputs:texture:file re-reads the dome (scene index)."""
+
+    def edit(stage, _half, grey, _eng):
+        path = write_exr(tmp_path / "grey.exr", grey)
+        stage.GetPrimAtPath("/Dome").GetAttribute("inputs:texture:file").Set(Sdf.AssetPath(path))
+
+    _grey_edit(gl_ctx, tmp_path, edit)
+
+
 def test_texture_file_changed_on_disk_reloads(gl_ctx, tmp_path):
     """The previewer's file watcher path (``Engine.reload_files``): the dome's texture
     file is rewritten in place; the file is watched (``texture_files``) and the next
-    frame lights with the new pixels (the half sky's underside lights up under grey)."""
+    frame lights with the new pixels."""
     import os
     import time
 
-    from stb_hydra.renderer.engine import Engine
-    from stb_hydra.renderer.frame import RenderSettings
+    def edit(_stage, half, grey, eng):
+        assert os.path.realpath(half) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
+        write_exr(Path(half), grey)
+        st = os.stat(half)  # a new mtime even on a coarse clock (the map cache's key)
+        os.utime(half, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
+        assert eng.reload_files({half}) == 1  # the dome light, no material texture
 
-    tex = tmp_path / "sky.exr"
-    write_exr(tex, half_sky())
-    stage = usda_stage(SPHERE_USDA.format(up="Y", albedo=ALBEDO, dome=dome_usda(str(tex))))
-    eng = Engine(stage, RenderSettings(width=W, height=H, lighting="stb"), ctx=gl_ctx)
-    try:
-        eng.request_aovs({"color"})
-        eng.render(None)
-        assert os.path.realpath(tex) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
-        before = eng.aovs["color"][..., 1].copy()
-        write_exr(tex, np.full((32, 64, 3), 0.5, np.float32))
-        st = os.stat(tex)  # a new mtime even on a coarse clock (the map cache's key)
-        os.utime(tex, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
-        assert eng.reload_files({str(tex)}) == 1  # the dome light, no material texture
-        eng.render(None)
-        after = eng.aovs["color"][..., 1].copy()
-    finally:
-        eng.release()
-    o, d = pixel_rays(stage)
-    n = sphere_normals(o, d)
-    low = interior(np.isfinite(n[..., 0])) & (np.nan_to_num(n[..., 1]) < -0.6)
-    assert float(np.median(before[low])) < 0.2 * ALBEDO  # albedo (1 + n.y) / 2 <= 0.2 albedo
-    assert float(np.median(after[low])) == pytest.approx(ALBEDO * 0.5, rel=0.05)
+    _grey_edit(gl_ctx, tmp_path, edit)
 
 
 LINKED_CUBE = """

@@ -218,41 +218,10 @@ def test_missing_texture_warns_once_and_emits_white(gl_ctx, tmp_path):
     np.testing.assert_array_equal(got, plain)
 
 
-def test_texture_edit_resyncs(gl_ctx, tmp_path):
-    """Authoring the mirrored texture on inputs:texture:file re-reads the light: the
-    bright side of the floor moves from +X to -X."""
-    from stb_hydra.renderer.engine import Engine
-    from stb_hydra.renderer.frame import RenderSettings
-
-    stage = floor_stage(rect_light(half_texture(tmp_path, True)))
-    p = plane_points(stage, 64, 36)
-    right = np.argmin(np.hypot(p[..., 0] - 1.0, p[..., 2]))
-    left = np.argmin(np.hypot(p[..., 0] + 1.0, p[..., 2]))
-    settings = RenderSettings(width=64, height=36, lighting="stb", temporal="off")
-    eng = Engine(stage, settings, ctx=gl_ctx)
-    try:
-        eng.request_aovs({"color"})
-        eng.render(None)
-        before = eng.aovs["color"][..., 1].copy()
-        attr = stage.GetPrimAtPath("/L").GetAttribute("inputs:texture:file")
-        attr.Set(Sdf.AssetPath(half_texture(tmp_path, False)))
-        eng.render(None)
-        after = eng.aovs["color"][..., 1].copy()
-    finally:
-        eng.release()
-    assert before.flat[right] > 3.0 * before.flat[left]
-    assert after.flat[left] > 3.0 * after.flat[right]
-    # the floor under a centred, mirrored light: the mirrored image
-    assert np.abs(after - before[:, ::-1]).max() <= 1e-4 * before.max()
-
-
-def test_texture_file_rewritten_on_disk_reloads(gl_ctx, tmp_path):
-    """The previewer's watcher path (``Engine.reload_files``): the texture file itself
-    is rewritten with the mirrored image; the light is read again and the bright side
-    of the floor moves from +X to -X."""
-    import os
-    import time
-
+def _mirror_edit(gl_ctx, tmp_path, edit) -> tuple[np.ndarray, np.ndarray]:
+    """The floor under the half texture (white on +X) rendered, ``edit(stage, tex,
+    engine)`` mirrors the texture somehow, rendered again: (before, after) green
+    channels; the bright side must have moved from +X to -X."""
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
@@ -267,18 +236,45 @@ def test_texture_file_rewritten_on_disk_reloads(gl_ctx, tmp_path):
         eng.request_aovs({"color"})
         eng.render(None)
         before = eng.aovs["color"][..., 1].copy()
-        assert os.path.realpath(tex) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
-        (tmp_path / "m").mkdir()
-        os.replace(half_texture(tmp_path / "m", False), tex)
-        st = os.stat(tex)  # a new mtime even on a coarse clock (the texture cache's key)
-        os.utime(tex, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
-        assert eng.reload_files({tex}) == 1
+        edit(stage, tex, eng)
         eng.render(None)
         after = eng.aovs["color"][..., 1].copy()
     finally:
         eng.release()
     assert before.flat[right] > 3.0 * before.flat[left]
     assert after.flat[left] > 3.0 * after.flat[right]
+    return before, after
+
+
+def test_texture_edit_resyncs(gl_ctx, tmp_path):
+    """Authoring the mirrored texture on inputs:texture:file re-reads the light: the
+    bright side of the floor moves from +X to -X."""
+
+    def edit(stage, _tex, _eng):
+        attr = stage.GetPrimAtPath("/L").GetAttribute("inputs:texture:file")
+        attr.Set(Sdf.AssetPath(half_texture(tmp_path, False)))
+
+    before, after = _mirror_edit(gl_ctx, tmp_path, edit)
+    # the floor under a centred, mirrored light: the mirrored image
+    assert np.abs(after - before[:, ::-1]).max() <= 1e-4 * before.max()
+
+
+def test_texture_file_rewritten_on_disk_reloads(gl_ctx, tmp_path):
+    """The previewer's watcher path (``Engine.reload_files``): the texture file itself
+    is rewritten with the mirrored image; the light and its texture-array layer are read
+    again and the bright side of the floor moves from +X to -X."""
+    import os
+    import time
+
+    def edit(_stage, tex, eng):
+        assert os.path.realpath(tex) in {os.path.realpath(f) for f in eng.delegate.texture_files()}
+        (tmp_path / "m").mkdir()
+        os.replace(half_texture(tmp_path / "m", False), tex)
+        st = os.stat(tex)  # a new mtime even on a coarse clock (the texture cache's key)
+        os.utime(tex, ns=(st.st_atime_ns, max(st.st_mtime_ns, time.time_ns()) + 10**9))
+        assert eng.reload_files({tex}) == 1
+
+    _mirror_edit(gl_ctx, tmp_path, edit)
 
 
 # --- against Mitsuba 3 ----------------------------------------------------------------------
