@@ -142,22 +142,18 @@ def _legend_spec(name: str) -> tuple[np.ndarray, str, str, str]:
             "max",
             "slot weight in its tile, log2 (dark = empty; hue = light)",
         )
-    if name == "smalltile":
+    if name in ("smalltile", "reuse_light"):  # black = empty, then hash colours
         c = np.concatenate(
             [np.zeros((16, 3), np.float32), np.repeat(hash_colors(np.arange(15)), 16, axis=0)]
         )
-        return c, "empty", "light hash", "colour = hash of the light index"
+        what = "the light index" if name == "smalltile" else "the reservoir's light"
+        return c, "empty", "light hash", f"colour = hash of {what}"
     if name == "reuse_m":
         from .. import limits
 
         m = np.concatenate([[0.0] * 16, np.exp2(np.linspace(0.0, 7.0, 240))])
         top = int(limits.STB_REUSE_DEBUG_M_MAX)
         return reuse_m_colors(m), "0 | 1", f">={top}", "reservoir confidence M, log2"
-    if name == "reuse_light":
-        c = np.concatenate(
-            [np.zeros((16, 3), np.float32), np.repeat(hash_colors(np.arange(15)), 16, axis=0)]
-        )
-        return c, "empty", "light hash", "colour = hash of the reservoir's light"
     if name == "reuse_reject":
         rgb = np.array(list(REUSE_REJECT_COLORS.values()), np.float32)
         c = np.repeat(rgb, 85, axis=0)

@@ -614,7 +614,6 @@ class StbDebugPass(Pass):
             fbo.clear(0.0, 0.0, 0.0, 0.0)
             return
         tex = frame.buffers.textures
-        lut_inv, lut_fwd = m._lut_textures(frame.ctx)
         prog = program(frame, f"debug_{self.aov}.frag", m.defines(frame))
         m._common_uniforms(frame, prog)
         unit = 0
@@ -628,6 +627,7 @@ class StbDebugPass(Pass):
         else:
             uniform = DEBUG_VIEW_INPUT[self.aov]
             unit = m._bind(frame, prog, unit, uniform, tex[DEBUG_INPUTS[uniform]])
+            lut_inv, lut_fwd = m._lut_textures(frame.ctx)  # the interleaved tile layout
             unit = m._bind(frame, prog, unit, "u_quad_lut", lut_inv)
             unit = m._bind(frame, prog, unit, "u_quad_fwd", lut_fwd)
         draw_fullscreen(frame.ctx, prog, fbo, frame.buffers.size)
