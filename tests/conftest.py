@@ -9,6 +9,13 @@ import pytest
 
 import stb_hydra  # noqa: F401  (registers the codeless USD schema before any stage opens)
 
+# llvmpipe compiles the suite's shader variants with LLVM's optimisation passes off:
+# ~2.5x faster compiles (most of a cold run), ~1.3x slower execution, the same images
+# (tests/test_shader_optimisation.py renders with them on and compares). Set before
+# any GL context; a GALLIVM_PERF already in the environment (even empty: optimised)
+# wins, and the CLI subprocesses inherit it. No effect on GPU drivers. docs/TESTING.md.
+os.environ.setdefault("GALLIVM_PERF", "nopt")
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
 TESTDATA = SHARED / "testdata"
