@@ -9,7 +9,9 @@
 // times its weight: the light's share of P's unshadowed illuminance (measured
 // lights + sun + dome) over u_share_full, clamped to 1; receivers where the light's
 // display-relative diffuse radiance is below u_display_min ask nothing. Reduced with
-// atomicMax on the float bits (order-preserving for floats >= 0).
+// atomicMax on the float bits (order-preserving for floats >= 0), and counted in a
+// histogram of LIM_FOOTPRINT_BINS half-octave bins of log2(side) per light (for a
+// percentile; bin b holds sides in [2^(b/2), 2^((b+1)/2)), the first and last open).
 #include "common/gbuffer.glsl"
 #include "common/lights.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -19,6 +21,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(std430, binding = SSBO_FOOTPRINT_LIGHTS) readonly buffer FootprintLights {
     vec4 fp_lights[];
 };
+// fp_need[i]: the maximum (float bits); fp_need[LIM_FOOTPRINT_LIGHTS + i * bins + b]: counts.
 layout(std430, binding = SSBO_FOOTPRINT_OUT) buffer FootprintOut { uint fp_need[]; };
 
 uniform uint u_count;          // measured lights (<= LIM_FOOTPRINT_LIGHTS)
@@ -28,10 +31,12 @@ uniform float u_display_min;   // display-relative radiance below which nothing 
 uniform float u_slope_max;     // cap of the slope factor cos(view) / cos(light)
 
 shared uint s_need[LIM_FOOTPRINT_LIGHTS];
+shared uint s_hist[LIM_FOOTPRINT_LIGHTS * LIM_FOOTPRINT_BINS];
 
 void main() {
     uint lid = gl_LocalInvocationIndex;
     for (uint i = lid; i < u_count; i += 64u) s_need[i] = 0u;
+    for (uint i = lid; i < u_count * uint(LIM_FOOTPRINT_BINS); i += 64u) s_hist[i] = 0u;
     barrier();
     ivec2 px = ivec2(gl_GlobalInvocationID.xy) * u_stride;
     ivec2 size = ivec2(u_resolution.xy);
@@ -65,10 +70,15 @@ void main() {
             float slope = min(cos_v, u_slope_max * cos_l) / cos_l;
             float need = weight * slope * fl.y * dist / pixel_m;
             atomicMax(s_need[i], floatBitsToUint(need));
+            int b = clamp(int(floor(2.0 * log2(max(need, 1e-30)))), 0, LIM_FOOTPRINT_BINS - 1);
+            atomicAdd(s_hist[i * uint(LIM_FOOTPRINT_BINS) + uint(b)], 1u);
         }
     }
     barrier();
     for (uint i = lid; i < u_count; i += 64u) {
         if (s_need[i] > 0u) atomicMax(fp_need[i], s_need[i]);
+    }
+    for (uint i = lid; i < u_count * uint(LIM_FOOTPRINT_BINS); i += 64u) {
+        if (s_hist[i] > 0u) atomicAdd(fp_need[LIM_FOOTPRINT_LIGHTS + i], s_hist[i]);
     }
 }

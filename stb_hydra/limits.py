@@ -238,6 +238,11 @@ SHADOW_FOOTPRINT_DISPLAY_MIN = 0.01
 #: Cap of a receiver's slope factor cos(view) / cos(light) (a surface the light grazes
 #: stretches each texel by 1 / cos(light)): 4 = up to 2 octaves more on such walls.
 SHADOW_FOOTPRINT_SLOPE_MAX = 4.0
+#: Half-octave bins of the per-light histogram of the receivers' needs (sides 1 to
+#: 2^16 texels), and the fraction of a light's receivers whose need the map meets:
+#: 1.0 = all of them (the maximum, exact; below 1 the percentile's bin's upper edge).
+SHADOW_FOOTPRINT_BINS = 32
+SHADOW_FOOTPRINT_PERCENTILE = 1.0
 
 #: Priority multiplier for lights whose influence sphere is outside the view: they
 #: keep their map (no churn when the camera turns) but are downgraded and

@@ -126,3 +126,28 @@ def test_near_dim_light_shadow_edge_is_sharp(gl_ctx):
         wrong[resolution] = int(((dark != occluded) & valid & ~band).sum())
     assert wrong["max"] == 0, wrong
     assert wrong["flux"] > 0, wrong  # the flux rule's 32-texel map blurs it
+
+
+def test_combine_targets_modes():
+    flux = np.array([100.0, 100.0, 100.0])
+    fp = np.array([400.0, 25.0, np.nan])  # the third light was not measured
+    np.testing.assert_array_equal(policy.combine_targets(flux, fp, "flux"), flux)
+    np.testing.assert_array_equal(policy.combine_targets(flux, fp, "footprint"), [400, 25, 100])
+    np.testing.assert_array_equal(policy.combine_targets(flux, fp, "max"), [400, 100, 100])
+    np.testing.assert_array_equal(policy.combine_targets(flux, None, "max"), flux)
+    with pytest.raises(ValueError):
+        policy.combine_targets(flux, fp, "median")
+    with pytest.raises(ValueError):
+        RenderSettings(width=8, height=8, shadow_resolution="median")
+
+
+def test_percentile_need_from_half_octave_bins():
+    from stb_hydra.renderer.tasks.shadow_footprint import percentile_need
+
+    hist = np.zeros((2, limits.SHADOW_FOOTPRINT_BINS), np.uint32)
+    hist[0, 10] = 90  # 90 receivers need [32, 45) texels
+    hist[0, 16] = 10  # 10 need [256, 362)
+    mx = np.array([300.0, 7.0])  # the second light has no receivers counted
+    np.testing.assert_array_equal(percentile_need(mx, hist, 1.0), mx)
+    np.testing.assert_allclose(percentile_need(mx, hist, 0.9), [2**5.5, 7.0])
+    np.testing.assert_allclose(percentile_need(mx, hist, 0.95), [300.0, 7.0])  # <= max

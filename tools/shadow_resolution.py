@@ -116,6 +116,12 @@ def main() -> None:
         help="atlas side of the truth render (e.g. 8192 with --truth-scale 1000: every "
         "map at the maximum side, not limited by the default atlas)",
     )
+    ap.add_argument(
+        "--percentile",
+        type=float,
+        default=None,
+        help="limits.SHADOW_FOOTPRINT_PERCENTILE for the policy's image (footprint, max)",
+    )
     ap.add_argument("--scale", type=float, default=1.0, help="scale of the policy's targets")
     ap.add_argument(
         "--resolution",
@@ -135,11 +141,22 @@ def main() -> None:
     from stb_hydra.metrics.image import flip_hdr, relmse
 
     w, h = (int(v) for v in a.size.lower().split("x"))
+    if a.percentile is not None:
+        from stb_hydra import limits
+
+        limits.SHADOW_FOOTPRINT_PERCENTILE = a.percentile
     rows = []
     for scene in a.scenes:
         got = _render(scene, w, h, a.frames, a.scale, a.resolution)
         img = got.pop("img")
-        row = {"scene": scene, "size": a.size, "resolution": a.resolution, "scale": a.scale, **got}
+        row = {
+            "scene": scene,
+            "size": a.size,
+            "resolution": a.resolution,
+            "scale": a.scale,
+            "percentile": a.percentile,
+            **got,
+        }
         if not a.no_truth:
             truth = _render(scene, w, h, a.frames, a.truth_scale, atlas_size=a.truth_atlas)
             ref = truth.pop("img")

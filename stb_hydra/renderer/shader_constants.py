@@ -220,6 +220,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_UDIM_FIRST_TILE": str(limits.UDIM_FIRST_TILE),
         "LIM_LINK_GROUPS": str(limits.MAX_LIGHT_LINK_GROUPS),
         "LIM_FOOTPRINT_LIGHTS": str(limits.SHADOW_FOOTPRINT_LIGHTS_MAX),
+        "LIM_FOOTPRINT_BINS": str(limits.SHADOW_FOOTPRINT_BINS),
         "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
         "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),

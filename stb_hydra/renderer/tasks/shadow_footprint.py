@@ -36,6 +36,22 @@ if TYPE_CHECKING:
     from .shadow_atlas import ShadowAtlasTask
 
 
+def percentile_need(maxima: np.ndarray, hist: np.ndarray, fraction: float) -> np.ndarray:
+    """Per light, the side (texels at 1 texel/px) that meets ``fraction`` of its
+    receivers: the maximum for fraction >= 1, else the upper edge 2^((b + 1) / 2) of
+    the half-octave bin b where the cumulative count reaches it (never above the
+    maximum). ``hist``: (lights, bins) receiver counts; ``maxima``: (lights,)."""
+    mx = np.asarray(maxima, dtype=np.float64)
+    if fraction >= 1.0 or not len(mx):
+        return mx
+    h = np.asarray(hist, dtype=np.float64)
+    cum = np.cumsum(h, axis=1)
+    total = cum[:, -1:]
+    b = np.argmax(cum >= fraction * np.maximum(total, 1e-30), axis=1)
+    edge = 2.0 ** ((b + 1) / 2.0)
+    return np.where(total[:, 0] > 0, np.minimum(edge, mx), mx)
+
+
 class ShadowFootprintTask(Pass):
     name = "shadow_footprint"
     reads = (
@@ -73,12 +89,14 @@ class ShadowFootprintTask(Pass):
             data = np.zeros((limits.SHADOW_FOOTPRINT_LIGHTS_MAX, 4), dtype=np.float32)
             data[:n, 0] = idx
             data[:n, 1] = span
+            m, bins = limits.SHADOW_FOOTPRINT_LIGHTS_MAX, limits.SHADOW_FOOTPRINT_BINS
+            words = m * (1 + bins)
             if self._in is None:
                 self._in = ctx.buffer(reserve=data.nbytes)
-                self._out = ctx.buffer(reserve=4 * limits.SHADOW_FOOTPRINT_LIGHTS_MAX)
+                self._out = ctx.buffer(reserve=4 * words)
             assert self._out is not None
             self._in.write(data.tobytes())
-            self._out.write(np.zeros(limits.SHADOW_FOOTPRINT_LIGHTS_MAX, np.uint32).tobytes())
+            self._out.write(np.zeros(words, np.uint32).tobytes())
             defines: dict[str, object] = {"HAS_CONES": True} if lights.has_cones else {}
             cs = shader_library(ctx).compute("shadow_footprint.comp", defines)
             bufs = frame.buffers
@@ -98,8 +116,12 @@ class ShadowFootprintTask(Pass):
             w, h = bufs.size
             cs.run(math.ceil(w / stride / 8), math.ceil(h / stride / 8), 1)
             ctx.memory_barrier()
-            bits = np.frombuffer(self._out.read(size=4 * n), dtype=np.uint32)
-            need = bits.view(np.float32).astype(np.float64)
+            raw = np.frombuffer(self._out.read(size=4 * (m + n * bins)), dtype=np.uint32)
+            need = percentile_need(
+                raw[:n].view(np.float32).astype(np.float64),
+                raw[m:].reshape(n, bins),
+                limits.SHADOW_FOOTPRINT_PERCENTILE,
+            )
         self.last_count = n
         atlas.set_footprint(keys, need, frame.frame_index)
         frame.stats["shadow_footprint_lights"] = n
