@@ -218,6 +218,32 @@ SHADOW_REFERENCE_FLUX_LM = 1000.0
 #: candle nor a stadium light escapes the distance-driven size entirely.
 SHADOW_FLUX_SCALE_RANGE = (0.25, 4.0)
 
+#: Screen-footprint map sizing (issue 33 item 5, ``RenderSettings.shadow_resolution``
+#: "footprint" / "max"; tasks/shadow_footprint.py): a compute pass over the G-buffer
+#: asks, per shadowed light, for the map side whose texels project to
+#: SHADOW_FOOTPRINT_TEXELS_PER_PIXEL screen pixels at the receivers where the light is
+#: visible. At most SHADOW_FOOTPRINT_LIGHTS_MAX lights a measurement (the highest
+#: priorities; the rest keep the flux rule), every SHADOW_FOOTPRINT_STRIDE_PX-th pixel
+#: in x and y.
+SHADOW_FOOTPRINT_LIGHTS_MAX = 64
+SHADOW_FOOTPRINT_STRIDE_PX = 2
+SHADOW_FOOTPRINT_TEXELS_PER_PIXEL = 0.5
+#: A receiver asks for the full density when the light gives this share of its
+#: (unshadowed) illuminance from the measured lights, the sun and the dome; less in
+#: proportion (a light giving 10 % asks for a 5x coarser map there).
+SHADOW_FOOTPRINT_SHARE_FULL = 0.5
+#: ... and asks nothing when the light's diffuse radiance on a white receiver, times
+#: the camera's exposure scale, is below this (display-relative; 1 = white).
+SHADOW_FOOTPRINT_DISPLAY_MIN = 0.01
+#: Cap of a receiver's slope factor cos(view) / cos(light) (a surface the light grazes
+#: stretches each texel by 1 / cos(light)): 4 = up to 2 octaves more on such walls.
+SHADOW_FOOTPRINT_SLOPE_MAX = 4.0
+#: Half-octave bins of the per-light histogram of the receivers' needs (sides 1 to
+#: 2^16 texels), and the fraction of a light's receivers whose need the map meets:
+#: 1.0 = all of them (the maximum, exact; below 1 the percentile's bin's upper edge).
+SHADOW_FOOTPRINT_BINS = 32
+SHADOW_FOOTPRINT_PERCENTILE = 1.0
+
 #: Priority multiplier for lights whose influence sphere is outside the view: they
 #: keep their map (no churn when the camera turns) but are downgraded and
 #: refreshed last (16x = 4 octaves of projected size).

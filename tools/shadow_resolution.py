@@ -24,7 +24,15 @@ from pathlib import Path
 import numpy as np
 
 
-def _render(scene: str, width: int, height: int, frames: int, scale: float) -> dict:
+def _render(
+    scene: str,
+    width: int,
+    height: int,
+    frames: int,
+    scale: float,
+    resolution: str = "flux",
+    atlas_size: int | None = None,
+) -> dict:
     from pxr import Usd
 
     from stb_hydra.renderer.engine import Engine
@@ -32,19 +40,35 @@ def _render(scene: str, width: int, height: int, frames: int, scale: float) -> d
     from stb_hydra.shadows import policy
 
     orig = policy.target_texels
+    orig_fp = getattr(policy, "footprint_texels", None)
 
     def scaled(*a, **kw):
         return orig(*a, **kw) * scale
 
+    def scaled_fp(*a, **kw):
+        return orig_fp(*a, **kw) * scale
+
     policy.target_texels = scaled  # type: ignore[assignment]
+    if orig_fp is not None:
+        policy.footprint_texels = scaled_fp  # type: ignore[assignment]
     try:
         stage = Usd.Stage.Open(scene)
+        extra: dict = {} if resolution == "flux" else {"shadow_resolution": resolution}
+        if atlas_size:
+            extra["shadow_atlas_size"] = atlas_size
         settings = RenderSettings(
-            width=width, height=height, lighting="reference", accumulate=frames, profile=True
+            width=width,
+            height=height,
+            lighting="reference",
+            accumulate=frames,
+            profile=True,
+            **extra,  # type: ignore[arg-type]
         )
         eng = Engine(stage, settings)
         try:
             eng.request_aovs({"color"})
+            if resolution != "flux":  # the footprint is measured on a frame's G-buffer:
+                eng.render(None)  # one render before, so every measured frame uses it
             t0 = time.perf_counter()
             eng.render(None)
             wall = time.perf_counter() - t0
@@ -63,6 +87,8 @@ def _render(scene: str, width: int, height: int, frames: int, scale: float) -> d
             eng.release()
     finally:
         policy.target_texels = orig  # type: ignore[assignment]
+        if orig_fp is not None:
+            policy.footprint_texels = orig_fp  # type: ignore[assignment]
     return {
         "img": img,
         "maps": len(sides),
@@ -83,6 +109,26 @@ def main() -> None:
     ap.add_argument("--size", default="320x180")
     ap.add_argument("--frames", type=int, default=4, help="accumulated frames")
     ap.add_argument("--truth-scale", type=float, default=4.0)
+    ap.add_argument(
+        "--truth-atlas",
+        type=int,
+        default=None,
+        help="atlas side of the truth render (e.g. 8192 with --truth-scale 1000: every "
+        "map at the maximum side, not limited by the default atlas)",
+    )
+    ap.add_argument(
+        "--percentile",
+        type=float,
+        default=None,
+        help="limits.SHADOW_FOOTPRINT_PERCENTILE for the policy's image (footprint, max)",
+    )
+    ap.add_argument("--scale", type=float, default=1.0, help="scale of the policy's targets")
+    ap.add_argument(
+        "--resolution",
+        default="flux",
+        help="RenderSettings.shadow_resolution of the policy's image: flux, footprint, max",
+    )
+    ap.add_argument("--no-truth", action="store_true", help="skip the truth render (use --against)")
     ap.add_argument("--json", type=Path)
     ap.add_argument(
         "--against",
@@ -95,23 +141,36 @@ def main() -> None:
     from stb_hydra.metrics.image import flip_hdr, relmse
 
     w, h = (int(v) for v in a.size.lower().split("x"))
+    if a.percentile is not None:
+        from stb_hydra import limits
+
+        limits.SHADOW_FOOTPRINT_PERCENTILE = a.percentile
     rows = []
     for scene in a.scenes:
-        got = _render(scene, w, h, a.frames, 1.0)
-        truth = _render(scene, w, h, a.frames, a.truth_scale)
-        img, ref = got.pop("img"), truth.pop("img")
+        got = _render(scene, w, h, a.frames, a.scale, a.resolution)
+        img = got.pop("img")
         row = {
             "scene": scene,
             "size": a.size,
+            "resolution": a.resolution,
+            "scale": a.scale,
+            "percentile": a.percentile,
             **got,
-            "truth": truth,
-            "hdr_flip_vs_truth": round(float(flip_hdr(img, ref)), 4),
-            "relmse_vs_truth": float(f"{relmse(img, ref):.3g}"),
-            "mean_ratio": round(float(img.mean() / max(ref.mean(), 1e-30)), 4),
         }
+        if not a.no_truth:
+            truth = _render(scene, w, h, a.frames, a.truth_scale, atlas_size=a.truth_atlas)
+            ref = truth.pop("img")
+            row.update(
+                {
+                    "truth": truth,
+                    "hdr_flip_vs_truth": round(float(flip_hdr(img, ref)), 4),
+                    "relmse_vs_truth": float(f"{relmse(img, ref):.3g}"),
+                    "mean_ratio": round(float(img.mean() / max(ref.mean(), 1e-30)), 4),
+                }
+            )
         if a.save:
             np.save(a.save, img)
-        if a.save_truth:
+        if a.save_truth and not a.no_truth:
             np.save(a.save_truth, ref)
         if a.against:
             other = np.load(a.against)

@@ -34,7 +34,7 @@ import io
 import json
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -297,6 +297,12 @@ def add_parser(sub) -> None:
         default="per_face",
         help="omni shadow capture mode (default per_face)",
     )
+    p.add_argument(
+        "--shadow-resolution",
+        default="flux",
+        help="comma-separated RenderSettings.shadow_resolution values, one record each: "
+        "flux (default), footprint, max (issue 33 item 5)",
+    )
     p.add_argument("--json", help="write the records (a JSON list) here")
     p.add_argument("--csv", help="write a CSV here (default with --json: beside it)")
     p.add_argument("--plot", help="write the plot PNG here (default with --json: beside it)")
@@ -391,6 +397,7 @@ def _run(args: argparse.Namespace) -> int:
         shadow_budget=budget,
         shadow_budget_ms=args.shadow_budget_ms,
         shadow_capture=args.shadow_capture,
+        shadow_resolutions=_resolutions(args.shadow_resolution),
     )
     if out_json:
         write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
@@ -424,11 +431,12 @@ def run_bench(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
+    shadow_resolutions: Sequence[str] = ("flux",),
 ) -> list[dict[str, Any]]:
-    """Every (scene, size, method) -> one record (see the module doc)."""
+    """Every (scene, size, method, shadow resolution) -> one record (see the module doc)."""
     from tqdm import tqdm
 
-    total = len(cases) * len(sizes) * len(methods) * (frames + warmup)
+    total = len(cases) * len(sizes) * len(methods) * len(shadow_resolutions) * (frames + warmup)
     bar = tqdm(total=total, unit="frame", disable=None if progress else True, file=sys.stderr)
     records: list[dict[str, Any]] = []
     try:
@@ -436,7 +444,7 @@ def run_bench(
             bar.set_description(f"building {case.label}")
             stage = case.build()
             for size in sizes:
-                for m in methods:
+                for m, res in ((m, r) for m in methods for r in shadow_resolutions):
                     bar.set_description(f"{m.label} {case.label} {size[0]}x{size[1]}")
                     rec = bench_one(
                         stage,
@@ -453,6 +461,7 @@ def run_bench(
                         shadow_budget=shadow_budget,
                         shadow_budget_ms=shadow_budget_ms,
                         shadow_capture=shadow_capture,
+                        shadow_resolution=res,
                     )
                     records.append(rec)
                     bar.update(frames + warmup - rec["frames"] - rec["warmup"])  # skipped
@@ -479,6 +488,7 @@ def bench_one(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
+    shadow_resolution: str = "flux",
 ) -> dict[str, Any]:
     """Measure one configuration on ``stage``; the engine is always released."""
     from ..renderer.engine import Engine, RenderError
@@ -497,6 +507,7 @@ def bench_one(
         shadow_budget=shadow_budget,
         shadow_budget_ms=shadow_budget_ms,
         shadow_capture_mode=shadow_capture,
+        shadow_resolution=shadow_resolution,
         method_options=dict(method.options),
     )
     try:
@@ -524,6 +535,7 @@ def bench_one(
         "label": method.label,
         "options": dict(method.options),
         "scene": scene_label,
+        "shadow_resolution": shadow_resolution,
         "lights": int(m.stats.get("fov_lights", 0)),
         "scene_lights": scene_lights,
         "width": settings.width,
@@ -537,6 +549,17 @@ def bench_one(
         "load_avg": load_before,
         "renderer": renderer,
     }
+
+
+def _resolutions(text: str) -> tuple[str, ...]:
+    """``--shadow-resolution``'s comma-separated list, checked."""
+    from ..shadows.policy import RESOLUTION_MODES
+
+    vals = tuple(v.strip() for v in text.split(",") if v.strip())
+    bad = [v for v in vals if v not in RESOLUTION_MODES]
+    if bad or not vals:
+        raise CliError(f"--shadow-resolution: {bad or text!r} not in {RESOLUTION_MODES}")
+    return vals
 
 
 def _shadow_summary(m: Any, budget: int | None, budget_ms: float | None) -> dict[str, Any]:

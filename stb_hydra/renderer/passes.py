@@ -29,6 +29,7 @@ from .tasks.lighting import LightingTask
 from .tasks.lightmap import LightmapTask
 from .tasks.shadow import SunShadowTask
 from .tasks.shadow_atlas import ShadowAtlasTask
+from .tasks.shadow_footprint import ShadowFootprintTask
 from .tasks.taa import AccumulateTask
 from .tasks.taa_filter import TaaFilterTask
 from .tasks.temporal import TemporalTask
@@ -76,11 +77,13 @@ def build_passes(
             budget_ms=settings.shadow_budget_ms,
             cost_coeffs=settings.shadow_cost_coeffs,
             capture_mode=settings.shadow_capture_mode,
+            resolution=settings.shadow_resolution,
         )
         uniforms = FrameUniformsTask(delegate, ctx)
     else:
         atlas, uniforms = keep.shadow_atlas, keep.frame_uniforms
         atlas.enabled = local_shadows
+        atlas.resolution = settings.shadow_resolution
     lighting = LightingTask(delegate, method, taa_inputs=settings.temporal == "taa")
     accumulate = AccumulateTask(delegate)
     temporal = TemporalTask(delegate) if settings.temporal == "taa" else None
@@ -97,6 +100,7 @@ def build_passes(
         uniforms,
         GBufferTask(delegate),
         HiZTask(delegate, max(HIZ_LEVELS, method.hiz_level)),
+        *([ShadowFootprintTask(delegate, atlas)] if settings.shadow_resolution != "flux" else []),
         lighting,
         temporal if temporal is not None else accumulate,
         *(

@@ -55,6 +55,10 @@ SSBO_BAKE_LIGHTS = 9
 #: STB reuse (``-o reuse=on``): previous frame's FoV light index -> this frame's (int,
 #: -1 = no longer in view), bound only when the FoV list changed.
 SSBO_STB_REUSE_REMAP = 10
+#: Shadow footprint (shadow_footprint.comp): the measured lights (FoV index, map
+#: angular span) in; the needed map side per light (float bits, atomicMax) out.
+SSBO_FOOTPRINT_LIGHTS = 11
+SSBO_FOOTPRINT_OUT = 12
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -215,6 +219,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_MATERIAL_TEXTURE_SLOTS": str(limits.MATERIAL_TEXTURE_SLOTS),
         "LIM_UDIM_FIRST_TILE": str(limits.UDIM_FIRST_TILE),
         "LIM_LINK_GROUPS": str(limits.MAX_LIGHT_LINK_GROUPS),
+        "LIM_FOOTPRINT_LIGHTS": str(limits.SHADOW_FOOTPRINT_LIGHTS_MAX),
+        "LIM_FOOTPRINT_BINS": str(limits.SHADOW_FOOTPRINT_BINS),
         "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
         "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),
@@ -236,6 +242,8 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
         "SSBO_BAKE_LIGHTS": str(SSBO_BAKE_LIGHTS),
         "SSBO_STB_REUSE_REMAP": str(SSBO_STB_REUSE_REMAP),
+        "SSBO_FOOTPRINT_LIGHTS": str(SSBO_FOOTPRINT_LIGHTS),
+        "SSBO_FOOTPRINT_OUT": str(SSBO_FOOTPRINT_OUT),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),

@@ -14,6 +14,12 @@ Sizes: nearest power of two in log2 (``2^floor(log2 t + 0.5)``) clamped to
 [min_size, max_size]; a light keeps its current size while log2(target) stays within
 ``0.5 + hysteresis`` octaves of log2(current).
 
+Footprint rule (issue 33 item 5, ``combine_targets``): the renderer can also measure,
+on the G-buffer, the side each light's receivers need on screen
+(``renderer/tasks/shadow_footprint.py``, in texels per texel/px) and size maps from
+that ("footprint") or from the larger of the two ("max"); lights it did not measure
+(NaN) keep the flux rule.
+
 Out-of-view lights (influence sphere outside the frustum, caller's test): keep their
 current size (no re-render churn when the camera turns; a light with no map yet gets
 ``min_size``) and get their priority scaled by ``SHADOW_OUT_OF_VIEW_PRIORITY_SCALE``,
@@ -26,6 +32,7 @@ import numpy as np
 
 from stb_hydra.limits import (
     SHADOW_FLUX_SCALE_RANGE,
+    SHADOW_FOOTPRINT_TEXELS_PER_PIXEL,
     SHADOW_MAP_MAX_SIZE,
     SHADOW_MAP_MIN_SIZE,
     SHADOW_OUT_OF_VIEW_PRIORITY_SCALE,
@@ -35,8 +42,11 @@ from stb_hydra.limits import (
 )
 
 __all__ = [
+    "RESOLUTION_MODES",
     "apply_hysteresis",
     "choose_resolutions",
+    "combine_targets",
+    "footprint_texels",
     "light_priorities",
     "sizes_from_target",
     "target_texels",
@@ -44,6 +54,8 @@ __all__ = [
 
 #: Floor (texels) of the continuous target so log2 stays finite.
 _TARGET_FLOOR = 1.0e-3
+#: ``RenderSettings.shadow_resolution`` values.
+RESOLUTION_MODES = ("flux", "footprint", "max")
 
 
 def target_texels(
@@ -64,6 +76,29 @@ def target_texels(
     lo, hi = SHADOW_FLUX_SCALE_RANGE
     flux_scale = np.clip(np.sqrt(flux / SHADOW_REFERENCE_FLUX_LM), lo, hi)
     return np.maximum(diameter_px * texels_per_pixel * flux_scale, _TARGET_FLOOR)
+
+
+def footprint_texels(
+    need: np.ndarray, texels_per_pixel: float = SHADOW_FOOTPRINT_TEXELS_PER_PIXEL
+) -> np.ndarray:
+    """Continuous map side (texels) from the footprint pass's measure ``need`` (the
+    side at 1 texel per screen pixel where the light's receivers are seen; NaN: not
+    measured, kept NaN)."""
+    return np.asarray(need, dtype=np.float64) * texels_per_pixel
+
+
+def combine_targets(flux_target: np.ndarray, footprint: np.ndarray | None, mode: str) -> np.ndarray:
+    """The target side per light under ``mode`` (``RESOLUTION_MODES``): the flux rule,
+    the footprint (NaN where not measured: the flux rule), or the larger of both."""
+    if mode not in RESOLUTION_MODES:
+        raise ValueError(f"resolution mode {mode!r} not in {RESOLUTION_MODES}")
+    ft = np.asarray(flux_target, dtype=np.float64)
+    if mode == "flux" or footprint is None:
+        return ft
+    fp = np.asarray(footprint, dtype=np.float64)
+    got = np.where(np.isnan(fp), ft, fp)
+    out = got if mode == "footprint" else np.maximum(ft, got)
+    return np.maximum(out, _TARGET_FLOOR)
 
 
 def apply_hysteresis(

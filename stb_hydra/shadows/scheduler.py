@@ -374,15 +374,22 @@ class ShadowScheduler:
         fov_y_rad: float,
         in_view: np.ndarray | None = None,
         texels_per_pixel: float = SHADOW_TEXELS_PER_PIXEL,
+        footprint_need: np.ndarray | None = None,
+        resolution: str = "flux",
     ) -> None:
         """Apply the resolution policy to ``keys`` (arrays aligned with them): set
         priorities, then shrink, then grow (highest priority first). Units: metres,
-        lumens, pixels, radians; see ``policy``."""
+        lumens, pixels, radians; see ``policy``. ``footprint_need``: the footprint
+        pass's measure per light (NaN: not measured), used as ``resolution`` says
+        (``policy.combine_targets``)."""
         lights = [self._lights[k] for k in keys]
         cur = np.fromiter((lt.desired for lt in lights), dtype=np.int64, count=len(lights))
         target = policy.target_texels(
             distance_m, flux_lm, range_m, viewport_height_px, fov_y_rad, texels_per_pixel
         )
+        if footprint_need is not None and resolution != "flux":
+            fp = policy.footprint_texels(footprint_need)
+            target = policy.combine_targets(target, fp, resolution)
         sizes = policy.sizes_from_target(
             target, cur, in_view, self.atlas.min_map, self.atlas.max_map
         )
@@ -424,6 +431,10 @@ class ShadowScheduler:
     def faces(self, key: Hashable) -> int:
         """Faces ``key``'s capture may be split into (``add_light``)."""
         return self._lights[key].faces
+
+    def priority(self, key: Hashable) -> float:
+        """Current allocation / update priority of ``key`` (``policy.light_priorities``)."""
+        return self._lights[key].priority
 
     def is_dynamic(self, key: Hashable) -> bool:
         return self._lights[key].dynamic

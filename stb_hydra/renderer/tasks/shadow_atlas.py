@@ -40,6 +40,8 @@ from .base import Pass
 if TYPE_CHECKING:
     from ..gl_delegate import GLRenderDelegate
 
+#: Angular span per side of an octahedral omni map (``shadows.capture.texel_angle``).
+OMNI_SPAN = float(np.sqrt(4.0 * np.pi))
 #: Frames a shadowed light may stay out of the FoV before its map is freed.
 KEEP_OUT_OF_VIEW_FRAMES = 120
 #: Frames between two runs of the resolution policy over every registered map
@@ -61,8 +63,17 @@ class ShadowAtlasTask(Pass):
         budget_ms: float | None = None,
         cost_coeffs: tuple[float, float, float] | None = None,
         capture_mode: str = "per_face",
+        resolution: str = "flux",
     ) -> None:
         super().__init__(delegate)
+        #: Map sides from "flux", "footprint" or "max" (``RenderSettings.shadow_resolution``).
+        self.resolution = resolution
+        #: Footprint pass results: key -> need (texels at 1 texel/px), the frame measured,
+        #: whether the policy has used them, whether a measurement is due now.
+        self._footprint: dict[str, float] = {}
+        self._footprint_frame = -1
+        self._footprint_new = False
+        self._footprint_due = True
         #: False: nothing samples local shadows (sun-only, --no-shadows): capture nothing.
         self.enabled = enabled
         self.atlas_size = atlas_size or limits.SHADOW_ATLAS_SIZE_DEFAULT
@@ -291,7 +302,9 @@ class ShadowAtlasTask(Pass):
         """Resolution policy (sizes, priorities), amortised over POLICY_INTERVAL frames."""
         fidx = frame.frame_index
         if not self._row_of or not (
-            self._membership_changed or fidx - self._last_policy >= POLICY_INTERVAL
+            self._membership_changed
+            or fidx - self._last_policy >= POLICY_INTERVAL
+            or self._footprint_new
         ):
             return
         t = self.delegate.light_table
@@ -308,9 +321,62 @@ class ShadowAtlasTask(Pass):
             viewport_height_px=float(frame.view.height),
             fov_y_rad=2.0 * float(np.arctan(frame.view.tan_half[1])),
             in_view=self._last_seen[rr] == fidx,
+            footprint_need=self._footprint_need(keys),
+            resolution=self.resolution,
         )
+        if self._membership_changed:
+            self._footprint_due = True
+        self._footprint_new = False
         self._last_policy = fidx
         self._records_dirty = True  # rects may have moved
+
+    # -- screen footprint (tasks/shadow_footprint.py) --
+    def wants_footprint(self, fidx: int) -> bool:
+        """Measure the footprint this frame: not "flux", lights registered, and the
+        policy runs next frame (or lights came / went since the last measurement)."""
+        if self.resolution == "flux" or not self.enabled or not self._row_of:
+            return False
+        return self._footprint_due or fidx + 1 - self._last_policy >= POLICY_INTERVAL
+
+    def footprint_candidates(self, rows: np.ndarray) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """(keys, FoV light index, map angular span per side) of the registered lights
+        among in-view ``rows`` (light-buffer order), at most
+        ``SHADOW_FOOTPRINT_LIGHTS_MAX`` of the highest scheduler priority."""
+        t = self.delegate.light_table
+        cand: list[tuple[float, int, str]] = []
+        for i, r in enumerate(rows.tolist()):
+            key = t.paths[r]
+            if key is None or key not in self._captures or self._row_of.get(key) != r:
+                continue
+            cand.append((-self.scheduler.priority(key), i, key))
+        cand.sort()
+        cand = cand[: limits.SHADOW_FOOTPRINT_LIGHTS_MAX]
+        keys = [k for _p, _i, k in cand]
+        idx = np.array([i for _p, i, _k in cand], dtype=np.float64)
+        caps = [self._captures[k] for k in keys]
+        span = np.array(
+            [OMNI_SPAN if c.omni else 2.0 * float(np.tan(c.spot_half_angle)) for c in caps],
+            dtype=np.float64,
+        )
+        return keys, idx, span
+
+    def set_footprint(self, keys: list[str], need: np.ndarray, fidx: int) -> None:
+        """The footprint pass's measure (texels at 1 texel per pixel) for ``keys``; the
+        policy uses it at its next run, which is forced to the next frame."""
+        self._footprint = dict(zip(keys, np.asarray(need, dtype=np.float64).tolist()))
+        self._footprint_frame = fidx
+        self._footprint_new = True
+        self._footprint_due = False
+
+    def footprint(self, key: str) -> float | None:
+        """Last measured need of ``key`` (texels at 1 texel/px; None: not measured)."""
+        return self._footprint.get(key)
+
+    def _footprint_need(self, keys: list[str]) -> np.ndarray | None:
+        if self.resolution == "flux" or self._footprint_frame < 0:
+            return None
+        fp = self._footprint
+        return np.fromiter((fp.get(k, np.nan) for k in keys), dtype=np.float64, count=len(keys))
 
     def _update_records(self, capturer: ShadowCapturer) -> None:
         """Planned maps become valid this frame; rect changes invalidate."""
