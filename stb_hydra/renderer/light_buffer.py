@@ -60,7 +60,7 @@ def points_first(table: LightTable, rows: np.ndarray) -> tuple[np.ndarray, int]:
     """``rows`` stably partitioned: lights without extent (never lit as an area: no
     polygon, no LTC) first, then the rest, each part in its given order; and the
     number of the first part. The exact methods run the first part through a loop
-    that holds only the point model (``light_radiance_point``): on SIMD hardware that
+    that holds only the point model (``light_radiance_point_at``): on SIMD hardware that
     executes both sides of a branch, a loop body carrying the area code costs it for
     every light (issue 34)."""
     out, n_point, _thin, _wide = by_light_model(table, rows)
@@ -71,7 +71,7 @@ def by_light_model(
     table: LightTable, rows: np.ndarray, narrow: np.ndarray | None = None
 ) -> tuple[np.ndarray, int, int, int]:
     """``rows`` stably partitioned by the light model the exact methods' loops need:
-    lights without extent (``light_radiance_point``), sphere lights ``narrow`` marks
+    lights without extent (``light_radiance_point_at``), sphere lights ``narrow`` marks
     (``light_radiance_sphere_narrow``: closed-form diffuse, point specular; see
     :func:`narrow_spheres`), the other sphere lights (``light_radiance_sphere_wide``:
     LTC specular where the lobe needs it), then the rest (``light_radiance``), each part
