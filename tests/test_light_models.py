@@ -244,7 +244,9 @@ def test_focus_tint_is_compiled_in_when_a_light_in_view_has_a_focus(gl_ctx):
 
     def render(f: float, method: str) -> np.ndarray:
         text = USDA_HEADER + camera_usda((0, 10, 0), -90, ortho=True) + ground_usda(15)
-        eng = Engine(usda_stage(text + light(f)), RenderSettings(width=w, height=ht, lighting=method))
+        eng = Engine(
+            usda_stage(text + light(f)), RenderSettings(width=w, height=ht, lighting=method)
+        )
         try:
             eng.render()
             return eng.aovs["color"][..., :3].astype(np.float64)
