@@ -89,6 +89,32 @@ def test_narrow_spheres_is_the_spec_weight_bound_over_the_nearest_receiver():
     assert t.area_kind[0] == sc.AREA_SPHERE
 
 
+def test_narrow_spheres_with_each_boxs_alpha():
+    """Each receiver box with its own smallest alpha (``box_alpha``): a light over a
+    rough ground (alpha 0.64) is narrow up to AREA_SPEC_POINT x 0.64 x h, beyond the
+    scene-wide bound of a smooth box far away (alpha 0.1); brought near the smooth box
+    (distance e), the smooth box's e x 0.1 is the bound."""
+    k = limits.AREA_SPEC_POINT
+    h = 2.0
+    t = _table(
+        [
+            (prims.SPHERE_LIGHT, 0.99 * k * 0.64 * h, h, False),  # narrow over the ground
+            (prims.SPHERE_LIGHT, 1.01 * k * 0.64 * h, h, False),  # not
+        ]
+    )
+    lo = np.array([[-100.0, -1.0, -100.0], [50.0, 0.0, 50.0]])
+    hi = np.array([[100.0, 0.0, 100.0], [51.0, 1.0, 51.0]])
+    rows = np.arange(2)
+    assert narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1])).tolist() == [True, False]
+    assert not narrow_spheres(t, rows, lo, hi, 0.1).any()  # one alpha for all: 0.1
+    # the smooth box 0.5 m beside light 0 (x = 0): its 0.5 x 0.1 now bounds it
+    lo[1], hi[1] = [0.5, 0.0, -1.0], [1.5, 3.0, 1.0]
+    assert not narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1]))[0]
+    r_ok = 0.99 * k * 0.1 * 0.5
+    t.cols["area_size"][0, 0] = r_ok
+    assert narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1]))[0]
+
+
 def _cap_form_factor(d: float, r: float, theta: float, n: int = 400) -> float:
     """Form factor of a sphere (radius r, centre at distance d, at angle theta from the
     normal) by midpoint quadrature over its cone of directions, clipped to the upper

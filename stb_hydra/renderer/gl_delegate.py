@@ -27,7 +27,7 @@ from . import shader_constants as sc
 from .delegate import RenderDelegate
 from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
-from .material_binding import MaterialParams, material_params
+from .material_binding import MaterialParams, alpha_floor, material_params
 from .receiver_bounds import leaf_boxes, world_boxes
 from .textures import TextureCache, TextureKey
 
@@ -135,8 +135,13 @@ class GLRenderDelegate(RenderDelegate):
         self.mesh_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         #: World AABBs ((B, 3) lo, hi, render frame, m) that together hold every drawn
         #: triangle, finer than ``mesh_bounds`` (each mesh's leaf boxes per instance:
-        #: ``receiver_bounds``): the narrow-sphere bound's receivers (issue 34).
-        self.receiver_boxes: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros((0, 3)))
+        #: ``receiver_bounds``), and (B,) the smallest GGX alpha of each box's material
+        #: (``material_binding.alpha_floor``): the narrow-sphere bound's receivers (issue 34).
+        self.receiver_boxes: tuple[np.ndarray, np.ndarray, np.ndarray] = (
+            np.zeros((0, 3)),
+            np.zeros((0, 3)),
+            np.zeros(0),
+        )
         self.changed_static_bounds: list[tuple[np.ndarray, np.ndarray]] = []
 
     # -- render prim hooks --
@@ -329,6 +334,7 @@ class GLRenderDelegate(RenderDelegate):
         new_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         recv_lo: list[np.ndarray] = []
         recv_hi: list[np.ndarray] = []
+        recv_alpha: list[np.ndarray] = []
         n_recv = 0
         for path, rp in self.meshes.items():
             m = rp.mesh
@@ -363,6 +369,7 @@ class GLRenderDelegate(RenderDelegate):
                     rlo, rhi = mlo[None], mhi[None]
                 recv_lo.append(rlo)
                 recv_hi.append(rhi)
+                recv_alpha.append(np.full(len(rlo), alpha_floor(mp)))
                 n_recv += len(rlo)
                 lo = np.minimum(lo, mlo)
                 hi = np.maximum(hi, mhi)
@@ -378,9 +385,9 @@ class GLRenderDelegate(RenderDelegate):
         self._static_changed.clear()
         self.mesh_bounds = new_bounds
         self.receiver_boxes = (
-            (np.concatenate(recv_lo), np.concatenate(recv_hi))
+            (np.concatenate(recv_lo), np.concatenate(recv_hi), np.concatenate(recv_alpha))
             if recv_lo
-            else (np.zeros((0, 3)), np.zeros((0, 3)))
+            else (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
         )
         for old in self.batches:
             if old.instance_buffer is not None:

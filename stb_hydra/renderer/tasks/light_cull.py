@@ -13,7 +13,7 @@ from .. import shader_constants as sc
 from ..frame import FrameContext
 from ..graph import Imported, Rec
 from ..light_buffer import by_light_model, cull_lights, narrow_spheres
-from ..material_binding import SLOT_OF
+from ..material_binding import alpha_floor
 from ..records import InViewLights
 from .base import Pass
 
@@ -73,15 +73,17 @@ class LightCullTask(Pass):
         key = (boxes, alpha, rows.tobytes(), *(hash(c[rows].tobytes()) for c in cols))
         old = self._narrow_key
         if old is None or old[0] is not boxes or old[1:] != key[1:]:
-            self._narrow_mask = narrow_spheres(t, rows, boxes[0], boxes[1], alpha)
+            lo, hi, box_alpha = boxes
+            self._narrow_mask = narrow_spheres(t, rows, lo, hi, alpha, box_alpha)
             self._narrow_key = key
         return self._narrow_mask
 
-    def _mesh_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+    def _mesh_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """World AABBs (render frame, m) that hold every drawn triangle, (B, 3) each:
         each mesh's leaf boxes per instance (``delegate.receiver_boxes``,
         ``renderer/receiver_bounds.py``), finer than a mesh's AABB (a mesh of scattered
-        boxes spans them all) and than the draw batches' (issue 34 item 2)."""
+        boxes spans them all) and than the draw batches' (issue 34 item 2); and (B,) the
+        smallest GGX alpha of each box's material (``material_binding.alpha_floor``)."""
         return self.delegate.receiver_boxes
 
     def _alpha_min(self) -> float:
@@ -91,14 +93,6 @@ class LightCullTask(Pass):
         d = self.delegate
         key = id(d.batches), len(d.batches)
         if self._alpha_key != key:
-            slot = SLOT_OF["roughness"]
-            a = 1.0
-            for b in d.batches:
-                m = b.material
-                if m.textures[slot] is not None or m.pv1_slot == slot:
-                    a = limits.GGX_ALPHA_MIN
-                    break
-                r = max(float(m.roughness) - 1.0 / 255.0, 0.0)
-                a = min(a, r * r)
+            a = min((alpha_floor(b.material) for b in d.batches), default=1.0)
             self._alpha_key, self._alpha = key, max(a, limits.GGX_ALPHA_MIN)
         return self._alpha
