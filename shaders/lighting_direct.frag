@@ -47,6 +47,9 @@ void main() {
     // the scene has lights of its model (LOOP_* defines, lighting/base.light_loops);
     // a model without its loop has no lights here, or lies in the general loop's range
     // (wide spheres when LOOP_GENERAL is in: it starts where the last loop ended).
+    // The point loop reads each light's members only past its range test
+    // (light_radiance_point_at); the others test the range before the Light argument
+    // is copied from the SSBO (light_reaches).
     uint n = u_counts.x;
     uint i = 0u;
 #ifdef LOOP_POINT
@@ -54,7 +57,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        c += light_radiance_point(lights[i], s);
+        c += light_radiance_point_at(i, s);
     }
 #endif
 #ifdef LOOP_SPHERE_NARROW
@@ -62,6 +65,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
+        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance_sphere_narrow(lights[i], s);
     }
 #endif
@@ -70,6 +74,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
+        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance_sphere_wide(lights[i], s);
     }
 #endif
@@ -78,6 +83,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
+        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance(lights[i], s);
     }
 #endif

@@ -80,7 +80,7 @@ void main() {
                     uint i = tree_lights[first + k];
                     if (i >= u_point_lights) break;
                     if (!tree_light_reaches(i, s.P, group)) continue;
-                    c += light_radiance_point(lights[i], s);
+                    c += light_radiance_point_at(i, s);
                 }
 #endif
 #ifdef LOOP_SPHERE_NARROW

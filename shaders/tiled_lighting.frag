@@ -51,7 +51,7 @@ void main() {
     // A cell's list is in ascending light order (tiled_cull.comp), and the point
     // lights come first (u_point_lights), then sphere lights (narrow up to u_sphere_end,
     // the others up to u_wide_sphere_end; renderer/light_buffer.by_light_model): each
-    // part runs a loop holding only its model's code (light_radiance_point,
+    // part runs a loop holding only its model's code (light_radiance_point_at,
     // light_radiance_sphere_narrow / _wide), the rest the full light_radiance. A loop
     // is compiled only for the models the scene has (LOOP_* defines,
     // lighting/base.light_loops; wide spheres fall to the general loop when it is in).
@@ -63,8 +63,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
-        c += light_radiance_point(lights[i], s);
+        c += light_radiance_point_at(i, s);  // tests the range itself
     }
 #endif
 #ifdef LOOP_SPHERE_NARROW
@@ -74,7 +73,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        if (!light_reaches(i, s.P)) continue;
         c += light_radiance_sphere_narrow(lights[i], s);
     }
 #endif
@@ -85,7 +84,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        if (!light_reaches(i, s.P)) continue;
         c += light_radiance_sphere_wide(lights[i], s);
     }
 #endif
@@ -95,7 +94,7 @@ void main() {
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (length(lights[i].pos_range.xyz - s.P) >= lights[i].pos_range.w) continue;
+        if (!light_reaches(i, s.P)) continue;
         c += light_radiance(lights[i], s);
     }
 #endif

@@ -703,3 +703,15 @@ RECT_TEXTURE_GRID_REALTIME = 2
 #: units of its distance to the rect's plane (in cosine / LTC space), sets the mip level.
 #: Heitz's demo: 1 (its log-3 pyramid); measured by tools/rect_texture_accuracy.py.
 RECT_TEXTURE_FOOTPRINT = 1.0
+
+# -- Receiver bounds for narrow sphere lights (issue 34 item 2) --
+#: Leaf boxes per mesh geometry (object space; its triangles split at the median along
+#: the longest axis until there are this many): the exact methods' narrow-sphere bound
+#: (``light_buffer.narrow_spheres``) takes the distance from a light to the nearest leaf
+#: box instead of to the mesh's AABB. On the generated many-light scene (100 boxes in
+#: one mesh) the mesh AABB spans every light: 31 of 500 spheres were provably narrow.
+RECEIVER_LEAVES_PER_MESH = 256
+#: Most world leaf boxes in all (a mesh's leaves times its instances): past it, a
+#: mesh's instances keep one box each (the mesh AABB): bounds the per-frame cost of
+#: the (lights x boxes) distance test.
+RECEIVER_BOXES_MAX = 4096

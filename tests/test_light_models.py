@@ -89,6 +89,32 @@ def test_narrow_spheres_is_the_spec_weight_bound_over_the_nearest_receiver():
     assert t.area_kind[0] == sc.AREA_SPHERE
 
 
+def test_narrow_spheres_with_each_boxs_alpha():
+    """Each receiver box with its own smallest alpha (``box_alpha``): a light over a
+    rough ground (alpha 0.64) is narrow up to AREA_SPEC_POINT x 0.64 x h, beyond the
+    scene-wide bound of a smooth box far away (alpha 0.1); brought near the smooth box
+    (distance e), the smooth box's e x 0.1 is the bound."""
+    k = limits.AREA_SPEC_POINT
+    h = 2.0
+    t = _table(
+        [
+            (prims.SPHERE_LIGHT, 0.99 * k * 0.64 * h, h, False),  # narrow over the ground
+            (prims.SPHERE_LIGHT, 1.01 * k * 0.64 * h, h, False),  # not
+        ]
+    )
+    lo = np.array([[-100.0, -1.0, -100.0], [50.0, 0.0, 50.0]])
+    hi = np.array([[100.0, 0.0, 100.0], [51.0, 1.0, 51.0]])
+    rows = np.arange(2)
+    assert narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1])).tolist() == [True, False]
+    assert not narrow_spheres(t, rows, lo, hi, 0.1).any()  # one alpha for all: 0.1
+    # the smooth box 0.5 m beside light 0 (x = 0): its 0.5 x 0.1 now bounds it
+    lo[1], hi[1] = [0.5, 0.0, -1.0], [1.5, 3.0, 1.0]
+    assert not narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1]))[0]
+    r_ok = 0.99 * k * 0.1 * 0.5
+    t.cols["area_size"][0, 0] = r_ok
+    assert narrow_spheres(t, rows, lo, hi, 0.1, np.array([0.64, 0.1]))[0]
+
+
 def _cap_form_factor(d: float, r: float, theta: float, n: int = 400) -> float:
     """Form factor of a sphere (radius r, centre at distance d, at angle theta from the
     normal) by midpoint quadrature over its cone of directions, clipped to the upper
@@ -215,3 +241,55 @@ def test_a_model_switching_every_frame_builds_its_loop_once(gl_ctx):
         assert built[0] >= 1 and built[1:] == [0, 0, 0], built
     finally:
         eng.release()
+
+
+@pytest.mark.gl
+def test_focus_tint_is_compiled_in_when_a_light_in_view_has_a_focus(gl_ctx):
+    """``NO_FOCUS`` (issue 34) leaves the focusTint ``pow`` out only when no light in
+    view has a focus: a downward point light (treatAsPoint) with focus 3 and a red focusTint over a
+    grey ground, seen from straight above (orthographic, so a pixel's ground distance
+    from the light's foot is known from its place on the grid), against the same light
+    without focus. The tint is mix(focusTint, 1, cos^focus): red unchanged, green (and
+    blue) times cos^focus, cos = h / sqrt(h^2 + rho^2) -- for every exact method."""
+    from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
+
+    from stb_hydra.renderer.engine import Engine
+    from stb_hydra.renderer.frame import RenderSettings
+
+    h, focus, w, ht = 2.0, 3.0, 32, 18
+
+    def light(f: float) -> str:
+        return (
+            'def SphereLight "L"\n{\n    float inputs:intensity = 2000\n'
+            "    float inputs:radius = 0.05\n    bool treatAsPoint = 1\n"
+            f"    float inputs:shaping:focus = {f:g}\n"
+            "    color3f inputs:shaping:focusTint = (1, 0, 0)\n"
+            f"    double3 xformOp:translate = (0, {h:g}, 0)\n    float xformOp:rotateX = -90\n"
+            '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateX"]\n}\n'
+        )
+
+    def render(f: float, method: str) -> np.ndarray:
+        text = USDA_HEADER + camera_usda((0, 10, 0), -90, ortho=True) + ground_usda(15)
+        eng = Engine(
+            usda_stage(text + light(f)), RenderSettings(width=w, height=ht, lighting=method)
+        )
+        try:
+            eng.render()
+            return eng.aovs["color"][..., :3].astype(np.float64)
+        finally:
+            eng.release()
+
+    # pixel centres on the 20 m x 11.25 m view centred on the light's foot (the grid is
+    # symmetric about the centre, so rho does not depend on the image's orientation)
+    x = (np.arange(w) + 0.5) / w * 20.0 - 10.0
+    z = (np.arange(ht) + 0.5) / ht * 11.25 - 5.625
+    rho2 = x[None, :] ** 2 + z[:, None] ** 2
+    want = (h / np.sqrt(h * h + rho2)) ** focus
+    for method in ("reference", "tiled", "clustered", "lighttree"):
+        plain, tinted = render(0.0, method), render(focus, method)
+        lit = plain[..., 1] > 1e-4 * plain[..., 1].max()
+        assert lit.sum() > 50, method
+        np.testing.assert_allclose(tinted[..., 0][lit], plain[..., 0][lit], rtol=1e-4)
+        got = tinted[..., 1][lit] / plain[..., 1][lit]
+        np.testing.assert_allclose(got, want[lit], rtol=2e-3, atol=1e-5, err_msg=method)
+        assert want[lit].min() < 0.5  # the tint is far from 1 somewhere in view

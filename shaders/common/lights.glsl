@@ -30,52 +30,64 @@ float range_window(float d, float range) {
 //   light_shape_scalar: cone x normalised IES table, in [0, 1]
 //   light_shape_rgb:    emission model x focusTint colour x IES scale (cd per table unit)
 // light_shape = scalar * rgb.
-float light_shape_scalar(Light L, vec3 w) {
-    float c = dot(w, L.axis_emit.xyz);      // cos of the angle off the axis
+// The *_m forms take the Light members they read (the point loop loads only those,
+// past its range test: light_radiance_point_at); the Light forms call them.
+float light_shape_scalar_m(vec4 axis_emit, vec4 cone, vec4 tint_ies, vec3 tangent,
+                           float angle_scale, vec3 w) {
+    float c = dot(w, axis_emit.xyz);      // cos of the angle off the axis
     float shape = 1.0;
 #ifdef HAS_CONES
-    if (L.cone.y < CONE_CUTOFF_TEST_RAD) {
+    if (cone.y < CONE_CUTOFF_TEST_RAD) {
         float theta = acos(clamp(c, -1.0, 1.0));
-        if (theta > L.cone.y) return 0.0;
-        if (L.cone.y > L.cone.z) {
-            float t = clamp((theta - L.cone.z) / (L.cone.y - L.cone.z), 0.0, 1.0);
+        if (theta > cone.y) return 0.0;
+        if (cone.y > cone.z) {
+            float t = clamp((theta - cone.z) / (cone.y - cone.z), 0.0, 1.0);
             shape *= 1.0 - t * t * (3.0 - 2.0 * t);
         }
     }
 #endif
 #ifdef HAS_IES
-    if (L.tint_ies.w >= 0.0) {
-        vec3 bitangent = cross(-L.axis_emit.xyz, L.tangent_tex.xyz);  // light +Y = Z x X
-        shape *= ies_table(int(L.tint_ies.w), L.ies_shadow.y, c,
-                           dot(w, L.tangent_tex.xyz), dot(w, bitangent));
+    if (tint_ies.w >= 0.0) {
+        vec3 bitangent = cross(-axis_emit.xyz, tangent);  // light +Y = Z x X
+        shape *= ies_table(int(tint_ies.w), angle_scale, c, dot(w, tangent), dot(w, bitangent));
     }
 #endif
     return shape;
 }
+float light_shape_scalar(Light L, vec3 w) {
+    return light_shape_scalar_m(L.axis_emit, L.cone, L.tint_ies, L.tangent_tex.xyz,
+                                L.ies_shadow.y, w);
+}
 
 // Emission model towards unit direction `w` leaving the light: 1 (isotropic),
 // cos+ off the axis (disk, rect: one-sided), sin to the X axis (cylinder side).
-float emission_shape(Light L, vec3 w) {
-    if (L.axis_emit.w == EMIT_COSINE) return max(dot(w, L.axis_emit.xyz), 0.0);
-    if (L.axis_emit.w == EMIT_CYLINDER) {
-        float ca = dot(w, L.tangent_tex.xyz);
+float emission_shape_m(vec4 axis_emit, vec3 tangent, vec3 w) {
+    if (axis_emit.w == EMIT_COSINE) return max(dot(w, axis_emit.xyz), 0.0);
+    if (axis_emit.w == EMIT_CYLINDER) {
+        float ca = dot(w, tangent);
         return sqrt(max(1.0 - ca * ca, 0.0));
     }
     return 1.0;
 }
+float emission_shape(Light L, vec3 w) { return emission_shape_m(L.axis_emit, L.tangent_tex.xyz, w); }
 
 // focusTint colour x IES scale towards w (light_shape_rgb without the emission model).
-vec3 light_tint_rgb(Light L, vec3 w) {
+vec3 light_tint_rgb_m(vec4 axis_emit, vec4 cone, vec4 tint_ies, float ies_scale, vec3 w) {
     float shape = 1.0;
 #ifdef HAS_IES
-    if (L.tint_ies.w >= 0.0) shape *= L.ies_shadow.x;
+    if (tint_ies.w >= 0.0) shape *= ies_scale;
 #endif
     vec3 tint = vec3(1.0);
-    if (L.cone.w > 0.0) {
-        float f = pow(abs(dot(w, L.axis_emit.xyz)), L.cone.w);
-        tint = mix(L.tint_ies.rgb, vec3(1.0), f);
+#ifndef NO_FOCUS  // no light in view has a focus (InViewLights.has_focus): tint is 1
+    if (cone.w > 0.0) {
+        float f = pow(abs(dot(w, axis_emit.xyz)), cone.w);
+        tint = mix(tint_ies.rgb, vec3(1.0), f);
     }
+#endif
     return tint * shape;
+}
+vec3 light_tint_rgb(Light L, vec3 w) {
+    return light_tint_rgb_m(L.axis_emit, L.cone, L.tint_ies, L.ies_shadow.x, w);
 }
 
 vec3 light_shape_rgb(Light L, vec3 w) {
@@ -88,13 +100,22 @@ vec3 light_shape(Light L, vec3 w) {
 
 // Inverse-square falloff times the range window (1/m^2); Ldir = unit direction
 // from P to the light, dist in metres. Zero outside the range.
-float light_falloff(Light L, vec3 P, out vec3 Ldir, out float dist) {
-    vec3 d = L.pos_range.xyz - P;
+float light_falloff_m(vec4 pos_range, vec3 P, out vec3 Ldir, out float dist) {
+    vec3 d = pos_range.xyz - P;
     dist = length(d);
     Ldir = d / max(dist, 1e-12);
-    if (dist >= L.pos_range.w) return 0.0;
+    if (dist >= pos_range.w) return 0.0;
     float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
-    return range_window(dist, L.pos_range.w) / (r * r);
+    return range_window(dist, pos_range.w) / (r * r);
+}
+float light_falloff(Light L, vec3 P, out vec3 Ldir, out float dist) {
+    return light_falloff_m(L.pos_range, P, Ldir, dist);
+}
+
+// Whether light i's range reaches P: light_falloff's own test (the same expression), on
+// pos_range alone -- a loop tests it before it copies the Light from the SSBO.
+bool light_reaches(uint i, vec3 P) {
+    return length(lights[i].pos_range.xyz - P) < lights[i].pos_range.w;
 }
 
 // Unshadowed illuminance (lux, RGB) facing the light at P.

@@ -472,18 +472,29 @@ vec3 light_radiance_sphere_wide(Light L, Surface s) {
     return light_radiance_sphere_impl(L, s, false);
 }
 
-// light_radiance for a light without extent (light_half_extent(L) == 0: never an area,
-// no specular LTC weight), with only the point model's code: the same operations as
-// light_reflect's point path, so the same value. The exact methods loop over their
-// point lights with this (u_point_lights): where both sides of a branch execute
-// (llvmpipe's SIMD lanes), a loop carrying the polygon and LTC code pays for it on
-// every light.
-vec3 light_radiance_point(Light L, Surface s) {
+// light_radiance for light i of the light buffer, a light without extent
+// (light_half_extent == 0: never an area, no specular LTC weight), with only the point
+// model's code: the same operations as light_reflect's point path, so the same value.
+// The exact methods loop over their point lights with this (u_point_lights): where
+// both sides of a branch execute (llvmpipe's SIMD lanes), a loop carrying the polygon
+// and LTC code pays for it on every light. It takes the light's index, not a Light:
+// it reads pos_range alone for the range test and the other members only past it (on
+// llvmpipe a Light argument copied all ten vec4 of every light from the SSBO before
+// the test: the reference's point loop cost 5.8x the bare loop, issue 34).
+vec3 light_radiance_point_at(uint i, Surface s) {
     vec3 Ldir;
     float dist;
-    float f = light_falloff(L, s.P, Ldir, dist);
+    float f = light_falloff_m(lights[i].pos_range, s.P, Ldir, dist);
     if (f <= 0.0) return vec3(0.0);
-    vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+    vec4 axis_emit = lights[i].axis_emit;
+    vec4 cone = lights[i].cone;
+    vec4 tint_ies = lights[i].tint_ies;
+    vec3 tangent = lights[i].tangent_tex.xyz;
+    vec4 ies_shadow = lights[i].ies_shadow;
+    vec3 E = lights[i].intensity.rgb
+           * (light_tint_rgb_m(axis_emit, cone, tint_ies, ies_shadow.x, -Ldir)
+              * emission_shape_m(axis_emit, tangent, -Ldir))
+           * f;
     vec3 d, sp;
 #ifdef HAS_CLEARCOAT
     if (s.coat > 0.0) {  // area_reflect_coated's point path (ws = wc = 0)
@@ -501,8 +512,15 @@ vec3 light_radiance_point(Light L, Surface s) {
         d = dsp * E;
         sp = ssp * E;
     }
-    vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
+    vec4 misc = lights[i].misc;
+    vec3 c = (d * misc.z + sp * misc.w)
+           * light_shape_scalar_m(axis_emit, cone, tint_ies, tangent, ies_shadow.y, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
-    return c * local_shadow(L, s.P, s.N);
+#ifdef HAS_SHADOWS
+    if (ies_shadow.z < 0.0) return c;  // unshadowed: no Light copy for local_shadow
+    return c * local_shadow(lights[i], s.P, s.N);
+#else
+    return c;
+#endif
 }
 #endif

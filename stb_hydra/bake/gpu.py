@@ -84,6 +84,7 @@ class StaticLightCull(LightCullTask):
                 rows=rows,
                 has_cones=bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))),
                 has_ies=bool(np.any(t.ies_layer[rows] >= 0)),
+                has_focus=bool(np.any(t.focus[rows] > 0)),
             )
         )
         frame.stats["fov_lights"] = len(rows)

@@ -27,7 +27,8 @@ from . import shader_constants as sc
 from .delegate import RenderDelegate
 from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
-from .material_binding import MaterialParams, material_params
+from .material_binding import MaterialParams, alpha_floor, material_params
+from .receiver_bounds import leaf_boxes, world_boxes
 from .textures import TextureCache, TextureKey
 
 __all__ = ["BatchArrays", "DrawBatch", "GLRenderDelegate", "GeometryBuffers", "MaterialParams"]
@@ -51,6 +52,8 @@ class GeometryBuffers:
     index_count: int
     bounds: tuple[np.ndarray, np.ndarray]  # object-space AABB
     users: set[str] = field(default_factory=set)
+    #: Object-space leaf boxes of its triangles ((G, 3) lo, hi: receiver_bounds.leaf_boxes).
+    leaves: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 3)), np.zeros((0, 3)))
     #: Texture coordinates, tangent frame, material primvars (10 floats per vertex):
     #: only for meshes that have texture coordinates or material primvars.
     vbo_material: moderngl.Buffer | None = None
@@ -130,6 +133,15 @@ class GLRenderDelegate(RenderDelegate):
         #: since the shadow task last looked (old and new): static shadow maps in
         #: range of these must be re-captured.
         self.mesh_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        #: World AABBs ((B, 3) lo, hi, render frame, m) that together hold every drawn
+        #: triangle, finer than ``mesh_bounds`` (each mesh's leaf boxes per instance:
+        #: ``receiver_bounds``), and (B,) the smallest GGX alpha of each box's material
+        #: (``material_binding.alpha_floor``): the narrow-sphere bound's receivers (issue 34).
+        self.receiver_boxes: tuple[np.ndarray, np.ndarray, np.ndarray] = (
+            np.zeros((0, 3)),
+            np.zeros((0, 3)),
+            np.zeros(0),
+        )
         self.changed_static_bounds: list[tuple[np.ndarray, np.ndarray]] = []
 
     # -- render prim hooks --
@@ -202,6 +214,7 @@ class GLRenderDelegate(RenderDelegate):
             else (np.zeros(3, np.float32), np.zeros(3, np.float32))
         )
         extra = _material_vertices(mesh)
+        leaves = leaf_boxes(mesh.points, idx)
         if g is None:
             g = GeometryBuffers(
                 self.ctx.buffer(data.tobytes() if n else b"\0" * 36),
@@ -211,6 +224,7 @@ class GLRenderDelegate(RenderDelegate):
             )
             if extra is not None:
                 g.vbo_material = self.ctx.buffer(extra.tobytes())
+            g.leaves = leaves
             self.geometry[key] = g
         else:
             if extra is not None:
@@ -230,6 +244,7 @@ class GLRenderDelegate(RenderDelegate):
                 g.ibo.write(idx.tobytes())
             g.index_count = int(idx.size)
             g.bounds = bounds
+            g.leaves = leaves
             self._batch_arrays = None
             for b in self.batches:
                 if b.geometry_key == key:
@@ -317,6 +332,10 @@ class GLRenderDelegate(RenderDelegate):
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         new_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        recv_lo: list[np.ndarray] = []
+        recv_hi: list[np.ndarray] = []
+        recv_alpha: list[np.ndarray] = []
+        n_recv = 0
         for path, rp in self.meshes.items():
             m = rp.mesh
             if m is None or not m.visible or len(m.indices) == 0:
@@ -337,6 +356,21 @@ class GLRenderDelegate(RenderDelegate):
             if len(wc):
                 mlo, mhi = wc.min(axis=0), wc.max(axis=0)
                 new_bounds[path] = (mlo, mhi)
+                # receiver boxes: the leaves of every instance, else one box per
+                # instance, else the mesh's (within limits.RECEIVER_BOXES_MAX in all)
+                glo, ghi = self.geometry[key_g].leaves
+                if n_recv + len(xf) * len(glo) <= limits.RECEIVER_BOXES_MAX:
+                    rlo, rhi = world_boxes(glo, ghi, xf)
+                elif n_recv + len(xf) <= limits.RECEIVER_BOXES_MAX:
+                    rlo, rhi = world_boxes(np.array([blo]), np.array([bhi]), xf)
+                else:
+                    rlo, rhi = mlo[None], mhi[None]
+                if len(rlo) == 0:
+                    rlo, rhi = mlo[None], mhi[None]
+                recv_lo.append(rlo)
+                recv_hi.append(rhi)
+                recv_alpha.append(np.full(len(rlo), alpha_floor(mp)))
+                n_recv += len(rlo)
                 lo = np.minimum(lo, mlo)
                 hi = np.maximum(hi, mhi)
                 g0 = gbounds.get(k)
@@ -350,6 +384,11 @@ class GLRenderDelegate(RenderDelegate):
                 self.changed_static_bounds.append(nb)
         self._static_changed.clear()
         self.mesh_bounds = new_bounds
+        self.receiver_boxes = (
+            (np.concatenate(recv_lo), np.concatenate(recv_hi), np.concatenate(recv_alpha))
+            if recv_lo
+            else (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+        )
         for old in self.batches:
             if old.instance_buffer is not None:
                 old.instance_buffer.release()

@@ -60,7 +60,7 @@ def points_first(table: LightTable, rows: np.ndarray) -> tuple[np.ndarray, int]:
     """``rows`` stably partitioned: lights without extent (never lit as an area: no
     polygon, no LTC) first, then the rest, each part in its given order; and the
     number of the first part. The exact methods run the first part through a loop
-    that holds only the point model (``light_radiance_point``): on SIMD hardware that
+    that holds only the point model (``light_radiance_point_at``): on SIMD hardware that
     executes both sides of a branch, a loop body carrying the area code costs it for
     every light (issue 34)."""
     out, n_point, _thin, _wide = by_light_model(table, rows)
@@ -71,7 +71,7 @@ def by_light_model(
     table: LightTable, rows: np.ndarray, narrow: np.ndarray | None = None
 ) -> tuple[np.ndarray, int, int, int]:
     """``rows`` stably partitioned by the light model the exact methods' loops need:
-    lights without extent (``light_radiance_point``), sphere lights ``narrow`` marks
+    lights without extent (``light_radiance_point_at``), sphere lights ``narrow`` marks
     (``light_radiance_sphere_narrow``: closed-form diffuse, point specular; see
     :func:`narrow_spheres`), the other sphere lights (``light_radiance_sphere_wide``:
     LTC specular where the lobe needs it), then the rest (``light_radiance``), each part
@@ -96,14 +96,19 @@ def narrow_spheres(
     lo: np.ndarray,
     hi: np.ndarray,
     alpha_min: float,
+    box_alpha: np.ndarray | None = None,
 ) -> np.ndarray:
     """Mask over ``rows``: sphere lights narrow against every specular lobe they can
     reach, so common/area.glsl's ``area_spec_weight`` is 0 at every receiver and they
-    need no LTC integral: radius / (d_min x alpha_min) below ``limits.AREA_SPEC_POINT``
-    (with a 1e-3 margin for float32), where d_min is the distance (m) from the light's
-    centre to the nearest of the world AABBs ``lo``, ``hi`` ((B, 3), render frame:
-    every receiver lies in one) and ``alpha_min`` the smallest GGX alpha in the scene.
-    A light without specular (multiplier 0) is narrow too."""
+    need no LTC integral: radius below ``limits.AREA_SPEC_POINT`` x min over the boxes of
+    (distance from the light's centre to the box x the box's alpha) (with a 1e-3 margin
+    for float32). ``lo``, ``hi``: world AABBs ((B, 3), render frame, m) such that every
+    receiver lies in one; ``box_alpha`` (B,): the smallest GGX alpha of a receiver in
+    each box (None: ``alpha_min``, the smallest in the scene, for every box; a box's
+    alpha is never taken below ``alpha_min``'s clamp ``limits.GGX_ALPHA_MIN``). A
+    receiver in box b is at least d_b away and has alpha >= alpha_b, so its
+    radius / (distance x alpha) is below the bound. A light without specular
+    (multiplier 0) is narrow too."""
     out = np.zeros(len(rows), dtype=bool)
     sph = np.nonzero(table.area_kind[rows] == sc.AREA_SPHERE)[0]
     if len(sph) == 0:
@@ -114,15 +119,22 @@ def narrow_spheres(
     if len(lo) == 0:
         out[sph] = True  # nothing to light
         return out
-    d_min = np.full(len(r), np.inf)
+    floor = max(alpha_min, limits.GGX_ALPHA_MIN)
+    a = (
+        np.full(len(lo), floor)
+        if box_alpha is None
+        else np.maximum(np.asarray(box_alpha, np.float64), limits.GGX_ALPHA_MIN)
+    )
+    reach = np.full(len(r), np.inf)  # min over boxes of distance x alpha (m)
     p = table.position[r]
     for i in range(0, len(lo), 256):  # (lights x 256 boxes) at a time
         gap = np.maximum(np.maximum(lo[None, i : i + 256] - p[:, None], 0.0), 0.0)
         gap = np.maximum(gap, p[:, None] - hi[None, i : i + 256])
-        d_min = np.minimum(d_min, np.sqrt((gap * gap).sum(axis=2)).min(axis=1))
-    bound = limits.AREA_SPEC_POINT * (1.0 - 1e-3) * max(alpha_min, limits.GGX_ALPHA_MIN)
+        d = np.sqrt((gap * gap).sum(axis=2)) * a[None, i : i + 256]
+        reach = np.minimum(reach, d.min(axis=1))
+    bound = limits.AREA_SPEC_POINT * (1.0 - 1e-3)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ok = radius < bound * d_min
+        ok = radius < bound * reach
     out[sph] = ok | no_spec
     return out
 

@@ -137,6 +137,17 @@ class MaterialParams:
         return self.textures[SLOT_OF["normal"]] is not None or self.normal != (0.0, 0.0, 1.0)
 
 
+def alpha_floor(m: MaterialParams) -> float:
+    """Smallest GGX alpha a surface of material ``m`` can have in the G-buffer
+    (common/gbuffer.glsl: roughness squared, clamped; a roughness texture or primvar may
+    reach the clamp; the 8-bit target may round a constant down by half a step)."""
+    slot = SLOT_OF["roughness"]
+    if m.textures[slot] is not None or m.pv1_slot == slot:
+        return limits.GGX_ALPHA_MIN
+    r = max(float(m.roughness) - 1.0 / 255.0, 0.0)
+    return max(r * r, limits.GGX_ALPHA_MIN)
+
+
 def material_params(mat: prims.MaterialPrim | None, mesh: prims.MeshPrim) -> MaterialParams:
     """Draw parameters of ``mesh`` with its resolved material (None / ``uses_defaults``:
     the display colour, per vertex where it varies)."""

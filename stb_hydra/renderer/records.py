@@ -53,6 +53,11 @@ class InViewLights:
     rows: np.ndarray
     has_cones: bool = False
     has_ies: bool = False
+    #: Some of them has a focus > 0 (a focusTint blend; light buffer ``cone.w``). True
+    #: unless the producer checked: without it, methods compile ``NO_FOCUS`` (the
+    #: focus ``pow`` left out of ``light_tint_rgb``: on llvmpipe an ``if`` body runs for
+    #: every light, issue 34).
+    has_focus: bool = True
     #: Some of them is a textured RectLight (``RECT_TEXTURES``).
     has_rect_textures: bool = False
     point_count: int = 0

@@ -250,6 +250,8 @@ class LightingMethod:
                 defines["HAS_IES"] = True
             if lights.has_cones:
                 defines["HAS_CONES"] = True
+            if not lights.has_focus:
+                defines["NO_FOCUS"] = True  # no focusTint pow (common/lights.glsl)
             if self.points_first:
                 self.light_models |= light_models(lights)
                 for m in light_loops(self.light_models, self.clearcoat):

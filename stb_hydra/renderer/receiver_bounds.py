@@ -1,0 +1,64 @@
+"""Leaf boxes of a mesh's triangles: a finer receiver bound for narrow sphere lights.
+
+``light_buffer.narrow_spheres`` proves a sphere light narrow against every lobe it can
+reach from a lower bound on the distance (m) from the light to any receiver: the
+nearest of a set of world AABBs that together hold every triangle. One AABB per mesh is
+valid but loose (a mesh of scattered boxes spans them all); each mesh's triangles split
+into up to ``limits.RECEIVER_LEAVES_PER_MESH`` groups, one AABB each, is as valid (every
+triangle lies inside its leaf's box) and much tighter (issue 34 item 2)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import limits
+
+
+def leaf_boxes(
+    points: np.ndarray, indices: np.ndarray, max_leaves: int = limits.RECEIVER_LEAVES_PER_MESH
+) -> tuple[np.ndarray, np.ndarray]:
+    """Object-space AABBs ((G, 3) lo, hi; G <= max_leaves) that hold every triangle of
+    ``points`` (n, 3) indexed by ``indices`` ((m, 3) or flat): the triangles are split
+    at the median of their box centres along the longest axis of those centres, level
+    by level, while the leaf count stays within ``max_leaves``. No triangles: (0, 3)."""
+    tri = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
+    if len(tri) == 0 or len(points) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    corners = np.asarray(points, dtype=np.float64)[tri]  # (m, 3, 3)
+    tlo, thi = corners.min(axis=1), corners.max(axis=1)
+    centre = 0.5 * (tlo + thi)
+    groups = [np.arange(len(tri))]
+    while 2 * len(groups) <= max_leaves:
+        split: list[np.ndarray] = []
+        for g in groups:
+            if len(g) < 2:
+                split.append(g)
+                continue
+            c = centre[g]
+            axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
+            order = g[np.argsort(c[:, axis], kind="stable")]
+            half = len(order) // 2
+            split += [order[:half], order[half:]]
+        if len(split) == len(groups):
+            break
+        groups = split
+    lo = np.array([tlo[g].min(axis=0) for g in groups])
+    hi = np.array([thi[g].max(axis=0) for g in groups])
+    return lo, hi
+
+
+def world_boxes(
+    lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """World AABBs ((K x G, 3) lo, hi) of object-space boxes ``lo``, ``hi`` (G, 3) under
+    each of ``transforms`` ((K, 4, 4), row vectors: p_world = [p, 1] @ M): the AABB of
+    each box's eight transformed corners; boxes with a non-finite corner are dropped."""
+    if len(lo) == 0 or len(transforms) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    sel = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+    corners = np.where(sel[None, :, :] == 0, lo[:, None, :], hi[:, None, :])  # (G, 8, 3)
+    corners = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+    wc = np.einsum("gci,kij->kgcj", corners, np.asarray(transforms, np.float64))[..., :3]
+    wlo, whi = wc.min(axis=2).reshape(-1, 3), wc.max(axis=2).reshape(-1, 3)
+    ok = np.all(np.isfinite(wlo), axis=1) & np.all(np.isfinite(whi), axis=1)
+    return wlo[ok], whi[ok]
