@@ -7,7 +7,8 @@ The flat API (Mitsuba style), run from a checkout::
     # (144, 256, 3) float32: scene-linear radiance (nits), linear Rec.709, top row first
 
 ``render`` (:func:`stb_hydra.api.render`: a plain function, see its signature),
-``Engine`` (a live engine: set_lighting, describe, AOVs), ``RenderSettings`` and
+``render_progressive`` (the accumulated image after several frame counts, from one
+accumulation), ``Engine`` (a live engine: set_lighting, describe, AOVs), ``RenderSettings`` and
 ``RenderError`` are imported on first use (no GL, no OCIO for scene-only users).
 The ``stb`` command (``stb --help``) renders, inspects, validates and benchmarks.
 
@@ -24,7 +25,7 @@ __version__ = "0.1.0"
 register_schema()
 
 
-_LAZY = ("render", "Engine", "RenderSettings", "RenderError")
+_LAZY = ("render", "render_progressive", "Engine", "RenderSettings", "RenderError")
 
 
 def __getattr__(name: str):
@@ -42,4 +43,4 @@ def __dir__() -> list[str]:
     return sorted({*globals(), *_LAZY})
 
 
-__all__ = ["Engine", "RenderError", "RenderSettings", "__version__", "render"]
+__all__ = ["Engine", "RenderError", "RenderSettings", "__version__", "render", "render_progressive"]

@@ -13,6 +13,7 @@ exposure scale (UsdGeomCamera exposure controls); the top row comes first.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from pxr import Usd
 from .renderer.engine import Engine, RenderError
 from .renderer.frame import RenderSettings
 
-__all__ = ["Engine", "RenderError", "RenderSettings", "render"]
+__all__ = ["Engine", "RenderError", "RenderSettings", "render", "render_progressive"]
 
 
 def render(
@@ -54,10 +55,61 @@ def render(
     (default None: every shadow map captured before the frame)...) or, failing that,
     options of the lighting method (e.g. ``N=4`` for stb), validated by its schema.
     """
+    settings = _settings(width, height, camera, lighting, seed, accumulate, ambient, options)
+    eng = Engine(stage, settings, time=time)
+    try:
+        eng.request_aovs({"color"})
+        eng.render(time)
+        return _color(eng, alpha)
+    finally:
+        eng.release()
+
+
+def render_progressive(
+    stage: Usd.Stage | str | Path,
+    counts: Iterable[int],
+    *,
+    width: int = 256,
+    height: int | None = None,
+    camera: str | None = None,
+    lighting: str = "reference",
+    time: float | None = None,
+    seed: int = 0,
+    ambient: float = 0.0,
+    alpha: bool = False,
+    **options,
+) -> dict[int, np.ndarray]:
+    """The accumulated image after each of ``counts`` frames, from one accumulation of
+    ``max(counts)`` frames: ``{count: image}``, each the image ``render(...,
+    accumulate=count)`` returns (the same seeds), at the cost of ``max(counts)``
+    frames. For convergence studies (error against the frame count). The keywords are
+    :func:`render`'s."""
+    counts = list(counts)
+    settings = _settings(width, height, camera, lighting, seed, max(counts), ambient, options)
+    eng = Engine(stage, settings, time=time)
+    try:
+        eng.request_aovs({"color"})
+        return {n: _color(eng, alpha) for n, _frame in eng.render_progressive(counts, time)}
+    finally:
+        eng.release()
+
+
+def _settings(
+    width: int,
+    height: int | None,
+    camera: str | None,
+    lighting: str,
+    seed: int,
+    accumulate: int,
+    ambient: float,
+    options: dict,
+) -> RenderSettings:
+    """``RenderSettings`` from the API's keywords: ``options`` that are settings fields
+    go there, the others are the lighting method's options."""
     fields = set(RenderSettings.__dataclass_fields__)
     extra = {k: v for k, v in options.items() if k in fields}
     method_options = {k: v for k, v in options.items() if k not in fields}
-    settings = RenderSettings(
+    return RenderSettings(
         width=width,
         height=height,
         camera=camera,
@@ -68,11 +120,8 @@ def render(
         method_options=method_options,
         **extra,
     )
-    eng = Engine(stage, settings, time=time)
-    try:
-        eng.request_aovs({"color"})
-        eng.render(time)
-        img = eng.aovs["color"]
-        return np.ascontiguousarray(img if alpha else img[..., :3])
-    finally:
-        eng.release()
+
+
+def _color(eng: Engine, alpha: bool) -> np.ndarray:
+    img = eng.aovs["color"]
+    return np.ascontiguousarray(img if alpha else img[..., :3])

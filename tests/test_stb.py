@@ -213,10 +213,9 @@ def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile):
         select=select,
         bigtile=bigtile,
     )
-    e64 = relmse(
-        stb_hydra.render(stage, width=w, height=h, lighting="stb", accumulate=64, **opts), ref
-    )
-    img = stb_hydra.render(stage, width=w, height=h, lighting="stb", accumulate=512, **opts)
+    # the 64- and 512-frame means of one accumulation (what two renders would give)
+    imgs = stb_hydra.render_progressive(stage, (64, 512), width=w, height=h, lighting="stb", **opts)
+    e64, img = relmse(imgs[64], ref), imgs[512]
     e512 = relmse(img, ref)
     # Quad/pixel selection evaluates one of the N = 4 samples per pixel: ~4x the variance.
     assert e512 <= (2e-3 if select == "all" else 8e-3), e512
@@ -385,6 +384,22 @@ def test_deterministic_same_seed_same_image(gl_ctx):
     c = stb_hydra.render(stage, width=96, height=54, lighting="stb", seed=4)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("temporal", ["accumulate", "taa"])
+def test_progressive_snapshots_are_the_renders_of_that_many_frames(gl_ctx, temporal):
+    """``render_progressive`` (what the convergence tests use): the mean after 1, 3 and
+    6 frames of one accumulation is bit for bit ``render(accumulate=n)``'s image --
+    the same seeds, the mid-run read-backs disturb nothing."""
+    stage = usda_stage(lights_scene(60))
+    kw = dict(width=64, height=36, lighting="stb", seed=5, N=2, temporal=temporal)
+    got = stb_hydra.render_progressive(stage, (6, 1, 3), **kw)
+    assert sorted(got) == [1, 3, 6]
+    for n, img in got.items():
+        np.testing.assert_array_equal(img, stb_hydra.render(stage, accumulate=n, **kw), err_msg=n)
+    assert not np.array_equal(got[1], got[6])
+    with pytest.raises(ValueError, match="frame counts"):
+        stb_hydra.render_progressive(stage, (0, 4), **kw)
 
 
 def test_no_local_lights_runs_the_sun_only_path(gl_ctx):

@@ -19,7 +19,7 @@ the requested AOVs change. Every phase and pass is timed.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -391,6 +391,27 @@ class Engine:
             self._in_sequence = False
         assert frame is not None  # n >= 1
         return frame
+
+    def render_progressive(
+        self, counts: Iterable[int], time: float | None = None
+    ) -> Iterator[tuple[int, FrameContext]]:
+        """Accumulate ``max(counts)`` frames as ``render(time, accumulate=max(counts))``
+        does, reading the AOVs back after each of ``counts`` frames: yields ``(count,
+        frame)`` with :attr:`aovs` then the mean of the first ``count`` frames -- the
+        image a ``render`` of ``count`` frames gives (the same seeds), without rendering
+        those frames again (convergence checks: 32 and 256 frames cost 256)."""
+        marks = sorted({int(c) for c in counts})
+        if not marks or marks[0] < 1:
+            raise ValueError(f"frame counts must be >= 1, got {sorted(counts)}")
+        self.accumulate.reset()
+        self._in_sequence = True
+        try:
+            for i in range(1, marks[-1] + 1):
+                frame = self.render_frame(time, final=i in marks)
+                if i in marks:
+                    yield i, frame
+        finally:
+            self._in_sequence = False
 
     @property
     def aovs(self) -> dict[str, np.ndarray]:
