@@ -583,6 +583,30 @@ def test_gen_lights_counts_and_speed(n: int):
     assert any(p.IsA(UsdGeom.Mesh) for p in stage.Traverse())
 
 
+def test_gen_point_lights_are_the_spheres_as_points():
+    """``--types point``: SphereLights with ``treatAsPoint``, the same draws and nits as
+    ``--types sphere`` (one type each, same seed), so the same candela (UsdLux:
+    I = L pi r^2, the radius kept) with no extent; not in the default mix."""
+    from stb_hydra.scene.lights import LightReadContext, area_half_extent, read_light
+    from stb_hydra.scenegen.lights import ALL_TYPES, build_lights_stage
+
+    assert "point" not in ALL_TYPES
+
+    def read(types: str):
+        stage = build_lights_stage(n_lights=30, seed=4, types=types)
+        ctx = LightReadContext(stage, np.eye(4), lambda m: None, lambda k, m: None)
+        t = Usd.TimeCode.Default()
+        return [read_light(p, ctx, t, np.eye(4)) for p in lights_of(stage)]
+
+    spheres, points = read("sphere"), read("point")
+    assert len(points) == 30
+    for s, p in zip(spheres, points, strict=True):
+        assert p.treat_as_point and not s.treat_as_point and p.valid
+        assert area_half_extent(p) == 0.0 < area_half_extent(s)
+        np.testing.assert_allclose(p.intensity, s.intensity, rtol=1e-6)
+        assert p.intensity.max() > 0.0
+
+
 def test_gen_lights_deterministic(tmp_path: Path):
     from stb_hydra.scenegen import lights as gen_lights_scene
 

@@ -19,9 +19,11 @@ Light types (``--types``): sphere (SphereLight), spot (SphereLight + ShapingAPI
 cone, aimed down), disk (DiskLight, facing down), rect (RectLight, facing down),
 ies (SphereLight + one of the IES profiles of usd_scenes/ies, normalised, aimed down;
 ``ies_dir`` / ``--ies-dir`` names that folder, by default the package's copy,
-``stb_hydra/data/ies``).
+``stb_hydra/data/ies``); and, only when asked for (not in the default mix), point
+(SphereLight with ``treatAsPoint``: a point light of the sphere's intensity; setting
+a sphere's radius to 0 instead makes it emit nothing, its intensity being in nits).
 Intensities are UsdLux luminance in nits derived from the drawn flux:
-sphere/spot L = Phi/(4 pi * pi r^2) (spot: before the cone cuts it), ies
+sphere/spot/point L = Phi/(4 pi * pi r^2) (spot: before the cone cuts it), ies
 L = Phi/(2 pi * pi r^2) (normalised hemispherical profile), disk L = Phi/(pi^2 r^2),
 rect L = Phi/(pi w h).
 
@@ -56,7 +58,9 @@ from .common import (
 )
 from .common import ies_dir as _ies_dir
 
-ALL_TYPES = ("sphere", "spot", "disk", "rect", "ies")
+ALL_TYPES = ("sphere", "spot", "disk", "rect", "ies")  # the default mix
+#: Every type ``--types`` accepts: the default mix and point lights.
+KNOWN_TYPES = (*ALL_TYPES, "point")
 #: IES profile -> cone angle to author (180 = no cone: the uplight emits upwards).
 IES_PROFILES = {
     "streetlamp_typeII": 90.0,
@@ -70,6 +74,7 @@ TYPE_TOKENS = {
     "disk": "DiskLight",
     "rect": "RectLight",
     "ies": "SphereLight",
+    "point": "SphereLight",
 }
 
 
@@ -81,9 +86,9 @@ def default_size(n_lights: int) -> float:
 
 def _parse_types(s: str | Sequence[str]) -> tuple[str, ...]:
     types = tuple(t.strip() for t in (s.split(",") if isinstance(s, str) else s) if t.strip())
-    bad = [t for t in types if t not in ALL_TYPES]
+    bad = [t for t in types if t not in KNOWN_TYPES]
     if bad or not types:
-        raise ValueError(f"unknown light types {bad}; choose from {','.join(ALL_TYPES)}")
+        raise ValueError(f"unknown light types {bad}; choose from {','.join(KNOWN_TYPES)}")
     return types
 
 
@@ -174,7 +179,7 @@ def lights_scene_usda(
     tname = np.array(types)[kind]
     nits = np.empty(n)
     area_r = math.pi * radius**2
-    m = (tname == "sphere") | (tname == "spot")
+    m = (tname == "sphere") | (tname == "spot") | (tname == "point")
     nits[m] = flux[m] / (4 * math.pi) / area_r[m]
     m = tname == "ies"
     nits[m] = flux[m] / (2 * math.pi) / area_r[m]
@@ -350,6 +355,8 @@ def _light_text(
         out.append(f"{p2}float inputs:width = {rw:.3f}\n{p2}float inputs:height = {rh:.3f}\n")
     else:
         out.append(f"{p2}float inputs:radius = {r:.3f}\n")
+    if t == "point":
+        out.append(f"{p2}bool treatAsPoint = 1\n")
     if t == "spot":
         out.append(
             f"{p2}float inputs:shaping:cone:angle = {cone:.1f}\n"
@@ -373,7 +380,7 @@ def _light_text(
             f"{p2}    {f}: ({q[0]:.3f}, {q[1]:.3f}, {q[2]:.3f}),\n" for f, q in zip(frames, path)
         )
         out.append(f"{p2}}}\n")
-    if t != "sphere":
+    if t not in ("sphere", "point"):
         # -Z (emission / cone / IES nadir axis) down, tilted for spots/disks/rects.
         tl = 0.0 if t == "ies" else tilt
         out.append(f"{p2}float3 xformOp:rotateXYZ = ({-90.0 + tl:.1f}, {yaw:.1f}, 0)\n")
