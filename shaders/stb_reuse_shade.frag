@@ -36,6 +36,9 @@
 #ifdef STB_REUSE_FUSED
 #include "common/reuse_initial.glsl"
 #endif
+#ifdef STB_REUSE_SHARE
+#include "common/reuse_share.glsl"
+#endif
 
 uniform usampler2D u_reuse;  // this frame's reservoirs after temporal reuse
 uniform int u_k;             // spatial neighbours (0 .. LIM_REUSE_K_MAX)
@@ -68,8 +71,20 @@ float reuse_term(Light L, vec3 P, vec3 N) {
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     Surface s;
+#ifdef STB_REUSE_SHARE
+    // Every invocation of the 2x2 quad (helpers outside the image too) joins the
+    // exchange before any of them leaves.
+    bool ok = all(lessThan(px, ivec2(u_resolution.xy))) && read_surface(px, s);
+    uint sgroup = 0u;
+#ifdef HAS_LINKS
+    if (ok) sgroup = link_group(px);
+#endif
+    Reservoir shared_res = reuse_share_quad(px, ok, s, sgroup);
+#else
+    bool ok = read_surface(px, s);
+#endif
     vec3 emission = surface_emission(px);
-    if (!read_surface(px, s)) {
+    if (!ok) {
         imageStore(u_hist_res, px, reservoir_pack(reservoir_empty()));
         imageStore(u_hist_geo, px, vec4(0.0));
         write_background(px);
@@ -87,7 +102,9 @@ void main() {
     Reservoir res[NMAX];
     Surface srf[NMAX];
     uint grp[NMAX];
-#ifdef STB_REUSE_FUSED
+#if defined(STB_REUSE_SHARE)
+    res[0] = shared_res;
+#elif defined(STB_REUSE_FUSED)
     {
         Rng ri = rng_init(uint(px.y) * 8192u + uint(px.x) + 0x71000000u, u_counts.y);
         float pfloor;
@@ -118,6 +135,7 @@ void main() {
 #endif
         ++n;
     }
+#ifndef STB_REUSE_FUSED
     Stream str = stream_empty();
     float M = 0.0;
     for (int i = 0; i < n; ++i) M += res[i].M;
@@ -164,6 +182,11 @@ void main() {
         stream_add(str, ri.y, pc, w, rng_float(rng));
     }
     Reservoir fin = stream_reservoir(str, M, u_mis == 0 ? M : 1.0);
+#else
+    // Fused (k = 0): resampling the one reservoir would return it (W = p W / p): it is
+    // kept as it is, one target evaluation fewer per pixel.
+    Reservoir fin = res[0];
+#endif
     if (fin.y != LIM_EMPTY_LIGHT_INDEX) {
         Light L = lights[fin.y];
         vec3 Ldir, d, sp;

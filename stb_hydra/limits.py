@@ -468,6 +468,13 @@ STB_REUSE_MAX_CHANGES = 32
 #: factor is taken towards the tile's central segment only, so a light dark there may
 #: still light the tile's corners; the floor keeps its probability positive (unbiased).
 STB_BIGTILE_SHAPE_FLOOR = 0.1
+#: ``-o reuse_target=tile`` (shaders/stb_reuse_slots.frag): the shaping (cone x IES x
+#: emission model) of a slot's light is the maximum over an n x n grid of G-buffer points
+#: spanning the pixels that may use the big tile (the tile and half a tile around it:
+#: stochastic bilinear selection), floored at a fraction of its peak so it stays > 0
+#: wherever the light may reach a pixel between the points (unbiased).
+STB_REUSE_SLOT_GRID = 4
+STB_REUSE_SLOT_SHAPE_FLOOR = 0.01
 
 # --- STB interleaving patterns --------------------------------------------------------
 

@@ -91,6 +91,16 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         ({"reuse_candidates": 16, "reuse_k": 0, "reuse_res": "quad"}, 3e-3),
         # The cheap initial target (point lights here: it differs by no cone / area).
         ({"reuse_candidates": 32, "reuse_k": 0, "reuse_target": "cheap"}, 3e-3),
+        # The 2x2 quad shares: 16 candidates per pixel, the quad's four reservoirs
+        # combined at each pixel by the balance heuristic (fine-derivative exchange).
+        ({"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share"}, 3e-3),
+        # ... with the per-slot target (the shaping once per big-tile slot; the pixel's
+        # part from two texels, a rational stand-in for the specular pow).
+        (
+            {"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
+            3e-3,
+        ),
+        ({"reuse_candidates": 16, "reuse_target": "tile"}, 3e-3),  # two passes, k = 4
     ],
 )
 @pytest.mark.slow
@@ -109,6 +119,71 @@ def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol)
     assert e256 <= tol, e256
     assert e256 < e32 / 3.0, (e32, e256)  # 8x the frames: error falls roughly as 1/M
     assert abs(got.mean() / exp.mean() - 1.0) < 0.01
+
+
+def spot_lights(n: int, seed: int = 5) -> str:
+    """n narrow spot lights (cones of 12-30 deg, soft edges) pointing straight down at
+    LAMBERT_FLOOR_USDA's plane: their cone edges cross the big tiles."""
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform([-5.0, 0.6, -3.0], [5.0, 2.5, 3.0], (n, 3))
+    return "".join(
+        f'def SphereLight "S{i}" (\n    prepend apiSchemas = ["ShapingAPI"]\n)\n{{\n'
+        f"    float inputs:intensity = {rng.uniform(2000.0, 40000.0):.1f}\n"
+        "    float inputs:radius = 0.05\n    float inputs:specular = 0\n"
+        "    bool treatAsPoint = 1\n"
+        f"    float inputs:shaping:cone:angle = {rng.uniform(12.0, 30.0):.2f}\n"
+        "    float inputs:shaping:cone:softness = 0.3\n"
+        f"    double3 xformOp:translate = ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f})\n"
+        "    float3 xformOp:rotateXYZ = (-90, 0, 0)\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateXYZ"]\n}\n'
+        for i, p in enumerate(pos)
+    )
+
+
+def spot_scene_and_reference():
+    stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=spot_lights(96)))
+    return stage, stb_hydra.render(stage, width=W, height=H, lighting="reference")[..., 0]
+
+
+TILE_SPOTS = dict(
+    REUSE, weight_cap=None, K=64, big_tile=32, reuse_k=0, reuse_candidates=64, reuse_target="tile"
+)
+
+
+@pytest.mark.parametrize("extra", [{}, {"reuse_res": "share"}])
+@pytest.mark.slow
+def test_tile_target_unbiased_with_spot_cones(gl_ctx, extra):
+    """``reuse_target=tile`` takes a light's cone once per big-tile slot (the maximum
+    over a grid of the tile's surface points, floored): with 96 narrow spots whose cone
+    edges cross the tiles the mean of the frames still converges to the reference --
+    the image mean within 1 % and the error falling ~1/M from 64 to 256 frames (weight
+    cap off)."""
+    stage, ref = spot_scene_and_reference()
+    assert ref.mean() > 0.0 and (ref < 1e-3 * ref.max()).mean() > 0.05  # dark outside cones
+    opts = dict(TILE_SPOTS, **extra)
+    e64 = relmse(
+        stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=64, **opts)[..., 0],
+        ref,
+    )
+    img = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **opts)
+    got = img[..., 0]
+    assert np.isfinite(img).all()
+    assert relmse(got, ref) < e64 / 3.0, (e64, relmse(got, ref))
+    assert abs(got.mean() / ref.mean() - 1.0) < 0.01
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="narrow cones between the slot grid's points sit at the 1 % floor: fireflies "
+    "(relMSE 0.043 at 256 frames against 8.5e-4 with the full target; docs/STB_NOTES.md)",
+)
+@pytest.mark.slow
+def test_tile_target_matches_full_target_noise_with_spot_cones(gl_ctx):
+    """The quality the tile target should reach on narrow spots: the full target's
+    256-frame error (8.5e-4) within a factor of 6."""
+    stage, ref = spot_scene_and_reference()
+    got = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **TILE_SPOTS)
+    assert relmse(got[..., 0], ref) <= 5e-3
 
 
 def test_reuse_off_is_todays_pipeline(gl_ctx, many_lights):
@@ -310,6 +385,11 @@ def shadowed_scene() -> str:
         {"reuse_candidates": 64, "reuse_k": 0, "reuse_temporal": "off"},  # fused
         {"reuse_candidates": 8, "reuse_res": "quad", "reuse_shadow_floor": 0.1},
         {"reuse_candidates": 16, "reuse_k": 0, "reuse_target": "cheap", "weight_cap": None},
+        # quad-shared candidates; under taa too (reuse_temporal is then ignored)
+        {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "weight_cap": None},
+        {"reuse_candidates": 4, "reuse_k": 0, "reuse_res": "share", "reuse_temporal": "on"},
+        {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
+        {"reuse_candidates": 16, "reuse_target": "tile", "reuse_shadow_floor": 0.1},
     ],
 )
 def test_no_nan_or_inf(gl_ctx, opts):
@@ -470,6 +550,9 @@ def test_reuse_candidate_options_are_checked():
         {"reuse_candidates": 24},
         {"reuse_candidates": 32, "K": 16},
         {"reuse_res": "quad"},
+        {"reuse_res": "share", "reuse_candidates": 32},  # spatial reuse (k = 4) on
+        {"reuse_res": "share", "reuse_candidates": 0, "reuse_k": 0},
+        {"reuse_target": "tile", "reuse_candidates": 16, "reuse_res": "quad"},
     ):
         with pytest.raises(OptionError):
             StbLighting(None, reuse=True, **bad)

@@ -47,6 +47,51 @@ float reuse_cheap_target(uint li, Surface s, uint group) {
 }
 #endif
 
+#ifdef STB_REUSE_SLOT_TARGET
+// -o reuse_target=tile: the pixel's part of the initial target from the slot's two
+// texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent): the
+// point form of common/stb_target.glsl (area horizon, Lambert + Blinn-Phong, + eps x
+// the facing illuminance x BRDF) with the shaping taken towards the tile, not this
+// pixel. > 0 wherever the light is in range (the shaping is floored): unbiased.
+uniform sampler2D u_slot_pos;    // rgba32f: light position (m), range (m)
+uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt, index
+
+float reuse_slot_target(vec4 pr, vec4 sh, Surface s, uint group) {
+    if (sh.w < 0.0) return 0.0;
+#ifdef HAS_LINKS
+    if (!light_linked(uint(sh.w), group)) return 0.0;
+#endif
+    vec3 d = pr.xyz - s.P;
+    float dist = length(d);
+    if (!(dist < pr.w)) return 0.0;
+    vec3 Ldir = d / max(dist, 1e-12);
+    float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
+    float Ev = sh.x * range_window(dist, pr.w) / (r * r);
+    float NoL = dot(s.N, Ldir);
+    // area horizon (light_target_irradiance): the sphere of the light's half extent
+    float e = clamp(sh.y / r, 1e-4, 1.0);
+    bool area = sh.y > LIM_AREA_POINT_RATIO * dist;
+    float c = !area || NoL >= e ? max(NoL, 0.0) : (NoL > -e ? (NoL + e) * (NoL + e) / (4.0 * e) : 0.0);
+    float a = max(s.alpha, LIM_GGX_ALPHA_MIN);
+    float spec_n = max(2.0 / (a * a) - 2.0, 1.0);
+    float NoH = max(dot(s.N, normalize(s.V + Ldir)), 0.0);
+    float kd = luminance(s.diffuse) / PI;
+    // Schlick's rational stand-in for pow(NoH, n), x / (n - n x + x): a division
+    // instead of a log2 and an exp2 per candidate (a target needs only the shape).
+    float ks = luminance(s.f0) * (spec_n + 2.0) / (2.0 * PI) * NoH / max(spec_n - spec_n * NoH + NoH, 1e-6);
+    float p = Ev * (kd * c + ks * max(NoL, 0.0) + u_eps * (kd + ks));
+    return p > 0.0 && !isinf(p) ? p : 0.0;
+}
+
+// The slot target of the big tile bt's slot (texel offset within the tile's block).
+float reuse_slot_target_at(ivec2 texel, Surface s, uint group) {
+    return reuse_slot_target(texelFetch(u_slot_pos, texel, 0), texelFetch(u_slot_shape, texel, 0), s, group);
+}
+#endif
+
+// The selected candidate's slot texel (reuse_initial_bigtile; -1: none).
+ivec2 reuse_sel_texel = ivec2(-1);
+
 // The initial target of light li at s: reuse_target (or the cheap one), x (floor +
 // (1 - floor) x a hard shadow gather) when u_shadow_floor < 1.
 float reuse_initial_target(uint li, Surface s, uint group) {
@@ -62,15 +107,48 @@ float reuse_initial_target(uint li, Surface s, uint group) {
     return p;
 }
 
-Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, out float pfloor) {
+#ifdef STB_REUSE_SHARE
+// -o reuse_res=share: the 2x2 quad's four pixels split the C = STB_REUSE_BIGTILE slots
+// of one big tile between them, C / 4 each (slots o0 + STRIDE (q' + 4 j), q' = (q + r)
+// mod 4: the quad's pixel q rotated by r). The tile jitter, o0 and r come from the
+// quad's own random stream (qrng, the same at its four pixels), so each pixel's stratum
+// is marginally uniform over [0, 4 STRIDE) (unbiased alone) and the four together see
+// all C slots once (stb_reuse_shade.frag combines their reservoirs).
+const int REUSE_PER_PIXEL = STB_REUSE_BIGTILE / 4;
+const int REUSE_SLOT_STEP = 4 * (STB_K / STB_REUSE_BIGTILE);
+#else
+const int REUSE_PER_PIXEL = STB_REUSE_BIGTILE;
+const int REUSE_SLOT_STEP = STB_K / STB_REUSE_BIGTILE;
+#endif
+
+Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, out float pfloor
+#ifdef STB_REUSE_SHARE
+                                , inout Rng qrng, int q
+#endif
+) {
     pfloor = 0.0;
     vec2 c = fc;
+#ifdef STB_REUSE_SHARE
+    c = floor(fc * 0.5) * 2.0 + 1.0;  // the quad's centre (px), the same at its 4 pixels
+    vec2 jit = vec2(rng_float(qrng), rng_float(qrng));
+    float uo = rng_float(qrng);
+    int rot = min(int(rng_float(qrng) * 4.0), 3);
+    if (u_stochastic_bilinear == 1) {
+        c += (jit - 0.5) * float(u_big_px);
+    }
+#else
     if (u_stochastic_bilinear == 1) {
         c += (vec2(rng_float(rng), rng_float(rng)) - 0.5) * float(u_big_px);
     }
+#endif
     ivec2 bt = clamp(ivec2(floor(c / float(u_big_px))), ivec2(0), u_big_tiles - 1);
-    const int STRIDE = STB_K / STB_REUSE_BIGTILE;  // s: slots each kept one stands for
+    const int STRIDE = REUSE_SLOT_STEP;  // s: slots each kept one stands for
+#ifdef STB_REUSE_SHARE
+    const int S0 = STB_K / STB_REUSE_BIGTILE;
+    int o = min(int(uo * float(S0)), S0 - 1) + S0 * ((q + rot) & 3);
+#else
     int o = min(int(rng_float(rng) * float(STRIDE)), STRIDE - 1);
+#endif
     float count = 0.0;
     float sel_wbt = 0.0;
     Stream ini = stream_empty();
@@ -103,14 +181,29 @@ Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, o
         float p = cp[j] + pfloor;
 #else
     // One streaming loop (no per-candidate arrays: cheaper on llvmpipe).
-    for (int j = 0; j < STB_REUSE_BIGTILE; ++j) {
+    ivec2 sel_texel = ivec2(-1);
+    for (int j = 0; j < REUSE_PER_PIXEL; ++j) {
         int slot = o + j * STRIDE;
-        uint smp = texelFetch(u_bigtile, bt * u_block + ivec2(slot % u_block.x, slot / u_block.x), 0).r;
+        ivec2 texel = bt * u_block + ivec2(slot % u_block.x, slot / u_block.x);
+#ifdef STB_REUSE_SLOT_TARGET
+        vec4 sh = texelFetch(u_slot_shape, texel, 0);
+        if (sh.w < 0.0 || !(sh.z > 0.0)) continue;
+        uint li = uint(sh.w);
+        float Wj = sh.z;
+        count += 1.0;
+        float p = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, s, group);
+        if (u_shadow_floor < 1.0 && p > 0.0) {
+            float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
+            p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
+        }
+#else
+        uint smp = texelFetch(u_bigtile, texel, 0).r;
         uint li = sample_index(smp);
         float Wj = sample_weight(smp);
         if (li == LIM_EMPTY_LIGHT_INDEX || !(Wj > 0.0)) continue;
         count += 1.0;
         float p = reuse_initial_target(li, s, group);
+#endif
 #endif
         float w = p * Wj * float(STRIDE);
         float u = rng_float(rng);
@@ -120,8 +213,14 @@ Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, o
             ini.y = li;
             ini.py = p;
             sel_wbt = Wj;
+#ifndef STB_REUSE_QUAD
+            sel_texel = texel;
+#endif
         }
     }
+#ifndef STB_REUSE_QUAD
+    reuse_sel_texel = sel_texel;
+#endif
     Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
     if (u_weight_cap > 0.0 && r0.y != LIM_EMPTY_LIGHT_INDEX) {
         r0.W = min(r0.W, u_weight_cap * float(STRIDE) * count * sel_wbt);

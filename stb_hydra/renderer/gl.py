@@ -36,6 +36,9 @@ SHADER_PACKAGE = "stb_hydra.shaders"
 #: Include generated from :mod:`.shader_constants`; no file on disk, in every shader.
 CONSTANTS_INCLUDE = "common/constants.glsl"
 GLSL_VERSION = "#version 430 core"
+#: A define ``GLSL_EXT_<name>`` (true) also emits ``#extension <name> : require`` right
+#: after ``#version`` (e.g. ``GLSL_EXT_GL_ARB_derivative_control`` for ``dFdxFine``).
+EXTENSION_PREFIX = "GLSL_EXT_"
 
 _lock = threading.Lock()
 _ctx: moderngl.Context | None = None
@@ -142,6 +145,9 @@ def _expand(name: str, seen: set[str]) -> str:
 def preprocess(name: str, defines: dict[str, object] | None = None) -> str:
     """Full GLSL source of ``shaders/<name>`` with includes expanded."""
     head = [GLSL_VERSION]
+    for k, v in (defines or {}).items():
+        if k.startswith(EXTENSION_PREFIX) and v:  # must precede any declaration
+            head.append(f"#extension {k[len(EXTENSION_PREFIX) :]} : require")
     for k, v in (defines or {}).items():
         if v is False or v is None:
             continue

@@ -194,6 +194,8 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_REUSE_ROUGHNESS_DIFF": f"{limits.STB_REUSE_ROUGHNESS_DIFF:.6f}",
         "LIM_REUSE_QUAD_FLOOR": f"{limits.STB_REUSE_QUAD_FLOOR:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
+        "LIM_REUSE_SLOT_GRID": str(limits.STB_REUSE_SLOT_GRID),
+        "LIM_REUSE_SLOT_SHAPE_FLOOR": f"{limits.STB_REUSE_SLOT_SHAPE_FLOOR:.6f}",
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
         "LIM_DOME_SAMPLES": str(limits.DOME_REFERENCE_SAMPLES),

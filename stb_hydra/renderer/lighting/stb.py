@@ -209,17 +209,21 @@ OPTIONS = Schema(
         "reuse_target",
         str,
         "full",
-        choices=("full", "cheap"),
+        choices=("full", "cheap", "tile"),
         doc="reuse: the initial resampling's per-pixel target with reuse_candidates > 0: "
-        "full (area, cone, IES) or cheap (point light from two of its ten vec4s)",
+        "full (area, cone, IES) or cheap (point light from two of its ten vec4s) or tile "
+        "(the light's shaping evaluated once per big-tile slot towards the tile, the "
+        "pixel's part from two texels)",
     ),
     Opt(
         "reuse_res",
         str,
         "pixel",
-        choices=("pixel", "quad"),
+        choices=("pixel", "quad", "share"),
         doc="reuse: initial reservoirs per pixel or per 2x2 quad (resampled at one of its "
-        "pixels with a defensive floor, shaded at all four; needs reuse_candidates > 0)",
+        "pixels with a defensive floor, shaded at all four; needs reuse_candidates > 0); "
+        "share: per pixel from C / 4 candidates each, the quad's four combined at every "
+        "pixel (needs reuse_candidates >= 4 and reuse_k = 0; no temporal reuse)",
     ),
     Opt(
         "reuse_shadow_floor",
@@ -267,6 +271,12 @@ class StbLighting(LightingMethod):
             raise OptionError("stb option reuse_candidates: must divide K")
         if o["reuse_res"] == "quad" and not c:
             raise OptionError("stb option reuse_res=quad: needs reuse_candidates > 0")
+        if o["reuse_target"] == "tile" and o["reuse_res"] == "quad":
+            raise OptionError("stb option reuse_target=tile: not with reuse_res=quad")
+        if o["reuse_res"] == "share" and (c < 4 or int(o["reuse_k"]) != 0):
+            raise OptionError(
+                "stb option reuse_res=share: needs reuse_candidates >= 4 and reuse_k=0"
+            )
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
 

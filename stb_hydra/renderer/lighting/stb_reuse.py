@@ -42,6 +42,7 @@ from ..shader_constants import (
     IMAGE_UNIT_REUSE_RESERVOIR,
     IMAGE_UNIT_REUSE_SURFACE,
     SSBO_STB_REUSE_REMAP,
+    TEX_UNIT_HIZ,
 )
 from .base import program
 
@@ -53,6 +54,8 @@ CURRENT = "stb_reuse_cur"
 #: Ping-ponged history: reservoirs and surfaces (linear depth m, oct normal, roughness).
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
+#: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
+SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
 MIS_MODES = {"count": 0, "balance": 1, "pairwise": 2}
 
@@ -63,6 +66,7 @@ def reuse_textures() -> tuple[Tex, ...]:
         Tex(CURRENT, "rgba32ui"),
         *(Tex(n, "rgba32ui") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in SURFACE),
+        *(Tex(n, "rgba32f") for n in SLOTS),
     )
 
 
@@ -189,7 +193,9 @@ class ReuseStage:
         reason = self._reset_reason(method, frame, n_rows)
         self.last_reset = reason
         frame.stats["stb_reuse_reset"] = reason
-        history = 0 if reason or not temporal_reuse(o["reuse_temporal"], frame) else 1
+        share = o["reuse_res"] == "share"  # the quad's four reservoirs, fused pass only
+        temporal = temporal_reuse(o["reuse_temporal"], frame) and not share
+        history = 0 if reason or not temporal else 1
         self.last_history = bool(history)
         src, dst = self._parity, 1 - self._parity
         w, h = bufs.size
@@ -205,10 +211,16 @@ class ReuseStage:
         n_cand = int(o["reuse_candidates"])
         if n_cand and o["reuse_target"] == "cheap":
             defines = dict(defines, STB_REUSE_CHEAP_TARGET=True)
+        slots: tuple[moderngl.Texture, ...] = ()
+        if n_cand and o["reuse_target"] == "tile":
+            slots = self._slots(method, frame, defines, small)
+            defines = dict(defines, STB_REUSE_SLOT_TARGET=True)
         if n_cand and not quad and not history and int(o["reuse_k"]) == 0:
             # Fused: one pass, the shading pass resamples the big tile's reservoirs itself.
             fdefines = dict(defines, STB_REUSE_BIGTILE=n_cand, STB_REUSE_FUSED=True)
-            self._shade(method, frame, fdefines, big_tile=small)
+            if share:
+                fdefines.update(STB_REUSE_SHARE=True, GLSL_EXT_GL_ARB_derivative_control=True)
+            self._shade(method, frame, fdefines, big_tile=small, slots=slots)
             self._finish(frame, rows, n_rows, reason, dst)
             return
 
@@ -230,6 +242,7 @@ class ReuseStage:
             ("u_motion", bufs.textures["g_motion"]),
             ("u_prev_res", h_src),
             ("u_prev_geo", g_src),
+            *zip(("u_slot_pos", "u_slot_shape"), slots),
         ):
             unit = method._bind(frame, prog, unit, name, tex)
         prev = self._prev_view if self._prev_view is not None else frame.view
@@ -255,6 +268,7 @@ class ReuseStage:
         defines: dict[str, Any],
         cur: moderngl.Texture | None = None,
         big_tile: moderngl.Texture | None = None,
+        slots: tuple[moderngl.Texture, ...] = (),
     ) -> None:
         """The shading pass (``stb_reuse_shade.frag``): reads this frame's reservoirs
         ``cur``, or (fused) resamples the big-tile reservoirs ``big_tile`` itself."""
@@ -272,7 +286,9 @@ class ReuseStage:
             set_uniform(prog, "u_big_tiles", method.grid(w, h)["big_tiles"])
             set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
             set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
-            method._bind(frame, prog, unit, "u_bigtile", big_tile)
+            unit = method._bind(frame, prog, unit, "u_bigtile", big_tile)
+            for name, tex in zip(("u_slot_pos", "u_slot_shape"), slots, strict=False):
+                unit = method._bind(frame, prog, unit, name, tex)
         set_uniform(prog, "u_k", int(o["reuse_k"]))
         set_uniform(prog, "u_radius", float(o["reuse_radius"]))
         set_uniform(prog, "u_mis", MIS_MODES[o["reuse_mis"]])
@@ -283,6 +299,21 @@ class ReuseStage:
         with frame.timings_scope("stb_lighting"):
             method.fullscreen_pass(frame, prog, "lighting")
         frame.ctx.memory_barrier()
+
+    def _slots(
+        self, method: Any, frame: FrameContext, defines: dict[str, Any], big: moderngl.Texture
+    ) -> tuple[moderngl.Texture, ...]:
+        """``stb_reuse_slots.frag``: each big-tile slot's half of the initial target
+        (``-o reuse_target=tile``), two rgba32f textures in the big tiles' layout."""
+        bufs = frame.buffers
+        texs = tuple(bufs.texture(n, 4, "f4", size=big.size) for n in SLOTS)
+        prog = program(frame, "stb_reuse_slots.frag", defines)
+        method._common_uniforms(frame, prog)
+        unit = method.bind_common(frame, prog)
+        method._bind(frame, prog, unit, "u_bigtile", big)
+        method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", bufs.textures[f"hiz{method.hiz_level}"])
+        method._pass(frame, prog, list(SLOTS), big.size)
+        return texs
 
     def _finish(
         self, frame: FrameContext, rows: np.ndarray, n_rows: int, reason: str, dst: int

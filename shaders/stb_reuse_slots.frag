@@ -1,0 +1,79 @@
+// STB reuse (issue 31), -o reuse_target=tile: the per-slot half of the initial target,
+// one fragment per big-tile reservoir slot (the stb_bigtile texture's layout). The
+// light's shaping -- cone x IES x emission model x focusTint, the part of the target
+// that costs the most per candidate on llvmpipe (acos, an IES texture lookup, a branch
+// per light type that every lane runs) -- is evaluated once per slot, towards the
+// maximum over a grid of the G-buffer's surface points of the pixels that may use the
+// tile (LIM_REUSE_SLOT_GRID^2, over the tile +- half a tile) and the tile's central
+// segment's point nearest the light, floored at LIM_REUSE_SLOT_SHAPE_FLOOR so the
+// target stays > 0 wherever the light may reach a pixel (unbiased; a looser fit where a
+// cone edge or an IES lobe crosses the tile between the grid's points). The
+// pixel's part (common/reuse_initial.glsl: reuse_slot_target) is then distance,
+// range window, horizon and BRDF only, from these two texels and no light record.
+//   o_pos:   light position (m, world), influence range (m)
+//   o_shape: x luminous intensity x shaping towards the tile (cd, luminance),
+//            y half extent (m; 0: a point light), z W_bt (the slot's contribution
+//            weight), w light index in the FoV list (float; -1: empty slot)
+#include "common/frame.glsl"
+#include "common/gbuffer.glsl"
+#include "common/packing.glsl"
+#include "common/lights.glsl"
+#include "common/bigtile_target.glsl"
+
+uniform usampler2D u_bigtile;  // r32ui big-tile reservoirs
+uniform ivec2 u_block;         // slot block per big tile (K = x * y)
+
+layout(location = 0) out vec4 o_pos;
+layout(location = 1) out vec4 o_shape;
+
+// cone x IES x emission model of L towards the point X (leaving the light).
+float slot_shape(Light L, vec3 X) {
+    vec3 d = X - L.pos_range.xyz;
+    vec3 w = d / max(length(d), 1e-12);
+    return light_shape_scalar(L, w) * emission_shape(L, w);
+}
+
+void main() {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    uint smp = texelFetch(u_bigtile, p, 0).r;
+    uint li = sample_index(smp);
+    float Wj = sample_weight(smp);
+    o_pos = vec4(0.0);
+    o_shape = vec4(0.0, 0.0, 0.0, -1.0);
+    if (li == LIM_EMPTY_LIGHT_INDEX || li >= u_counts.x || !(Wj > 0.0)) return;
+    Light L = lights[li];
+    ivec2 tile = p / u_block;
+    // The maximum over a grid of surface points of the pixels that may use this tile
+    // (the tile +- half a tile), and the tile's central segment's point nearest the
+    // light (always: covers background-only grids).
+    vec3 A, B, C;
+    float R;
+    tile_segment(tile, A, B, C, R);
+    vec3 ab = B - A;
+    float t = clamp(dot(L.pos_range.xyz - A, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
+    vec3 Xbest = A + t * ab;
+    float shape = slot_shape(L, Xbest);
+    const int G = LIM_REUSE_SLOT_GRID;
+    vec2 lo = (vec2(tile) - 0.5) * float(u_big_px);
+    float step_px = 2.0 * float(u_big_px) / float(G);
+    for (int gy = 0; gy < G; ++gy) {
+        for (int gx = 0; gx < G; ++gx) {
+            vec2 q = clamp(lo + (vec2(gx, gy) + 0.5) * step_px, vec2(0.5), u_resolution.xy - 0.5);
+            float z = texelFetch(g_depth, ivec2(q), 0).r;
+            if (z <= 0.0) continue;
+            vec3 X = world_pos_from_depth(q, z);
+            float sh = slot_shape(L, X);
+            if (sh > shape) {
+                shape = sh;
+                Xbest = X;
+            }
+        }
+    }
+    vec3 d = Xbest - L.pos_range.xyz;
+    vec3 w = d / max(length(d), 1e-12);
+    shape = max(shape, LIM_REUSE_SLOT_SHAPE_FLOOR);
+    float I = luminance(L.intensity.rgb * light_tint_rgb(L, w)) * shape;
+    float he = L.area.z == AREA_POINT ? 0.0 : light_half_extent(L);
+    o_pos = L.pos_range;
+    o_shape = vec4(I, he, Wj, float(li));
+}
