@@ -84,8 +84,10 @@ def render_progressive(
     accumulate=count)`` returns (the same seeds), at the cost of ``max(counts)``
     frames. For convergence studies (error against the frame count). The keywords are
     :func:`render`'s."""
-    counts = list(counts)
-    settings = _settings(width, height, camera, lighting, seed, max(counts), ambient, options)
+    counts = list(counts)  # the engine checks them (>= 1, not empty)
+    settings = _settings(
+        width, height, camera, lighting, seed, max(counts, default=1), ambient, options
+    )
     eng = Engine(stage, settings, time=time)
     try:
         eng.request_aovs({"color"})

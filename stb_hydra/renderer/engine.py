@@ -381,15 +381,7 @@ class Engine:
         reprojected history, which carries over to the next call (a sequence);
         with ``"off"`` only the last frame is shown."""
         n = max(1, int(accumulate or self.settings.accumulate))
-        self.accumulate.reset()
-        frame: FrameContext | None = None
-        self._in_sequence = True
-        try:
-            for i in range(n):
-                frame = self.render_frame(time, final=i == n - 1)
-        finally:
-            self._in_sequence = False
-        assert frame is not None  # n >= 1
+        ((_, frame),) = self.render_progressive((n,), time)
         return frame
 
     def render_progressive(
@@ -400,13 +392,13 @@ class Engine:
         frame)`` with :attr:`aovs` then the mean of the first ``count`` frames -- the
         image a ``render`` of ``count`` frames gives (the same seeds), without rendering
         those frames again (convergence checks: 32 and 256 frames cost 256)."""
-        marks = sorted({int(c) for c in counts})
-        if not marks or marks[0] < 1:
-            raise ValueError(f"frame counts must be >= 1, got {sorted(counts)}")
+        marks = {int(c) for c in counts}
+        if not marks or min(marks) < 1:
+            raise ValueError(f"frame counts must be >= 1, got {sorted(marks)}")
         self.accumulate.reset()
         self._in_sequence = True
         try:
-            for i in range(1, marks[-1] + 1):
+            for i in range(1, max(marks) + 1):
                 frame = self.render_frame(time, final=i in marks)
                 if i in marks:
                     yield i, frame
