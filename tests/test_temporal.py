@@ -142,11 +142,11 @@ def test_still_camera_taa_converges_like_accumulate(repo):
     stage = str(repo / "usd_scenes" / "default.usda")
     w, h, n = 96, 54, 64
 
-    def run(lighting, temporal):
+    def run(lighting, temporal, frames=n):
         eng = Engine(stage, RenderSettings(width=w, height=h, lighting=lighting, temporal=temporal))
         try:
             if temporal == "accumulate":
-                eng.render(accumulate=n)
+                eng.render(accumulate=frames)
             else:
                 for _ in range(n):
                     eng.render()
@@ -154,7 +154,9 @@ def test_still_camera_taa_converges_like_accumulate(repo):
         finally:
             eng.release()
 
-    acc = relmse(run("stb", "accumulate"), run("reference", "accumulate"))
+    # The reference's own accumulation is converged at 8 frames (relMSE 3e-6 against
+    # its 64, beside STB's 0.05); its taa sequence runs the full 64 (taa's state).
+    acc = relmse(run("stb", "accumulate"), run("reference", "accumulate", 8))
     taa = relmse(run("stb", "taa"), run("reference", "taa"))
     assert taa <= 2.0 * acc, (taa, acc)
 
