@@ -53,7 +53,8 @@ def _render(
         policy.footprint_texels = scaled_fp  # type: ignore[assignment]
     try:
         stage = Usd.Stage.Open(scene)
-        extra: dict = {} if resolution == "flux" else {"shadow_resolution": resolution}
+        # Always named: the default changed (flux -> lift) and the truth is flux-sized.
+        extra: dict = {"shadow_resolution": resolution}
         if atlas_size:
             extra["shadow_atlas_size"] = atlas_size
         settings = RenderSettings(
@@ -122,6 +123,12 @@ def main() -> None:
         default=None,
         help="limits.SHADOW_FOOTPRINT_PERCENTILE for the policy's image (footprint, max)",
     )
+    ap.add_argument(
+        "--lift-ratio",
+        type=float,
+        default=None,
+        help="limits.SHADOW_LIFT_MIN_RATIO for the policy's image (lift)",
+    )
     ap.add_argument("--scale", type=float, default=1.0, help="scale of the policy's targets")
     ap.add_argument(
         "--resolution",
@@ -145,6 +152,10 @@ def main() -> None:
         from stb_hydra import limits
 
         limits.SHADOW_FOOTPRINT_PERCENTILE = a.percentile
+    if a.lift_ratio is not None:
+        from stb_hydra import limits as _limits
+
+        _limits.SHADOW_LIFT_MIN_RATIO = a.lift_ratio
     rows = []
     for scene in a.scenes:
         got = _render(scene, w, h, a.frames, a.scale, a.resolution)
@@ -155,6 +166,7 @@ def main() -> None:
             "resolution": a.resolution,
             "scale": a.scale,
             "percentile": a.percentile,
+            "lift_ratio": a.lift_ratio,
             **got,
         }
         if not a.no_truth:

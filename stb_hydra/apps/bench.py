@@ -299,9 +299,9 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--shadow-resolution",
-        default="flux",
+        default="lift",
         help="comma-separated RenderSettings.shadow_resolution values, one record each: "
-        "flux (default), footprint, max (issue 33 item 5)",
+        "lift (default), flux, footprint, max (issue 33 item 5)",
     )
     p.add_argument("--json", help="write the records (a JSON list) here")
     p.add_argument("--csv", help="write a CSV here (default with --json: beside it)")
@@ -431,7 +431,7 @@ def run_bench(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
-    shadow_resolutions: Sequence[str] = ("flux",),
+    shadow_resolutions: Sequence[str] = ("lift",),
 ) -> list[dict[str, Any]]:
     """Every (scene, size, method, shadow resolution) -> one record (see the module doc)."""
     from tqdm import tqdm
@@ -488,7 +488,7 @@ def bench_one(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
-    shadow_resolution: str = "flux",
+    shadow_resolution: str = "lift",
 ) -> dict[str, Any]:
     """Measure one configuration on ``stage``; the engine is always released."""
     from ..renderer.engine import Engine, RenderError
