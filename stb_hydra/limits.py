@@ -238,7 +238,7 @@ SHADOW_FOOTPRINT_DISPLAY_MIN = 0.01
 #: Cap of a receiver's slope factor cos(view) / cos(light) (a surface the light grazes
 #: stretches each texel by 1 / cos(light)): 4 = up to 2 octaves more on such walls.
 SHADOW_FOOTPRINT_SLOPE_MAX = 4.0
-#: "lift" (the default ``RenderSettings.shadow_resolution``; ``policy.lift_targets``):
+#: "lift" (``RenderSettings.shadow_resolution``; ``policy.lift_targets``):
 #: a light keeps the flux rule's side unless its measured footprint asks for more
 #: than this many times the flux target (a continuous ratio, not octaves of the
 #: power-of-two sides, so it does not depend on where the rounding falls) ...

@@ -375,7 +375,7 @@ class ShadowScheduler:
         in_view: np.ndarray | None = None,
         texels_per_pixel: float = SHADOW_TEXELS_PER_PIXEL,
         footprint_need: np.ndarray | None = None,
-        resolution: str = "lift",
+        resolution: str = policy.DEFAULT_RESOLUTION,
     ) -> None:
         """Apply the resolution policy to ``keys`` (arrays aligned with them): set
         priorities, then shrink, then grow (highest priority first). Units: metres,

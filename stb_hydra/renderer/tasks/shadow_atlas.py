@@ -20,6 +20,7 @@ import moderngl
 import numpy as np
 
 from ... import limits
+from ...shadows import policy
 from ...shadows.atlas import ShadowAtlas
 from ...shadows.capture import (
     RECORD_FLOATS,
@@ -63,7 +64,7 @@ class ShadowAtlasTask(Pass):
         budget_ms: float | None = None,
         cost_coeffs: tuple[float, float, float] | None = None,
         capture_mode: str = "per_face",
-        resolution: str = "lift",
+        resolution: str = policy.DEFAULT_RESOLUTION,
     ) -> None:
         super().__init__(delegate)
         #: Map sides from "lift", "flux", "footprint" or "max"
