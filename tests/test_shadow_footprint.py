@@ -179,6 +179,18 @@ def test_percentile_need_from_half_octave_bins():
     np.testing.assert_allclose(percentile_need(mx, hist, 0.95), [300.0, 7.0])  # <= max
 
 
+def test_lift_hysteresis_keeps_a_lifted_light_near_the_threshold():
+    """A ratio just under SHADOW_LIFT_MIN_RATIO lifts a light that is lifted now (its
+    side > 2x the flux side) but not one at the flux side; far under, neither."""
+    r = limits.SHADOW_LIFT_MIN_RATIO
+    keep = r / 2.0 ** (0.5 + limits.SHADOW_RES_HYSTERESIS_OCTAVES)
+    flux = np.full(3, 100.0)  # nominal side 128
+    fp = np.array([0.9 * r, 0.9 * r, 0.9 * keep]) * 100.0
+    cur = np.array([512, 128, 512])
+    got = policy.combine_targets(flux, fp, "lift", current_sizes=cur)
+    np.testing.assert_array_equal(got, [fp[0], 100.0, 100.0])
+
+
 def _texels(target: np.ndarray) -> float:
     """Atlas texels of the nominal power-of-two sides of ``target`` (no history)."""
     sides = policy.apply_hysteresis(target, np.zeros(len(target), np.int64))

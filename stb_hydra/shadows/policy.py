@@ -112,10 +112,12 @@ def combine_targets(
     budget_texels: float | None = None,
     min_size: int = SHADOW_MAP_MIN_SIZE,
     max_size: int = SHADOW_MAP_MAX_SIZE,
+    current_sizes: np.ndarray | None = None,
 ) -> np.ndarray:
     """The target side (texels) per light under ``mode`` (``RESOLUTION_MODES``): the
     flux rule, the footprint (NaN where not measured: the flux rule), the larger of
-    both, or ``lift_targets`` (``budget_texels``: the atlas's texels; None: no cap)."""
+    both, or ``lift_targets`` (``budget_texels``: the atlas's texels, None: no cap;
+    ``current_sizes``: the sides now, for the lift's hysteresis)."""
     if mode not in RESOLUTION_MODES:
         raise ValueError(f"resolution mode {mode!r} not in {RESOLUTION_MODES}")
     ft = np.asarray(flux_target, dtype=np.float64)
@@ -123,7 +125,14 @@ def combine_targets(
         return ft
     fp = np.asarray(footprint, dtype=np.float64)
     if mode == "lift":
-        return lift_targets(ft, fp, budget_texels, min_size=min_size, max_size=max_size)
+        return lift_targets(
+            ft,
+            fp,
+            budget_texels,
+            min_size=min_size,
+            max_size=max_size,
+            current_sizes=current_sizes,
+        )
     got = np.where(np.isnan(fp), ft, fp)
     out = got if mode == "footprint" else np.maximum(ft, got)
     return np.maximum(out, _TARGET_FLOOR)
@@ -138,6 +147,7 @@ def lift_targets(
     atlas_fraction: float | None = None,
     min_size: int = SHADOW_MAP_MIN_SIZE,
     max_size: int = SHADOW_MAP_MAX_SIZE,
+    current_sizes: np.ndarray | None = None,
 ) -> np.ndarray:
     """Continuous sides (texels): ``flux_target``, except where the measured
     ``footprint`` (texels; NaN: not measured) exceeds ``min_ratio`` x the flux target,
@@ -147,21 +157,31 @@ def lift_targets(
     ``budget_texels``; a lift that would pass it is dropped (the flux target kept),
     so the lifts never take the atlas past the budget (the flux sides alone may).
     None: ``limits.SHADOW_LIFT_MIN_RATIO`` / ``SHADOW_LIFT_ATLAS_FRACTION`` (read at
-    call time, so tools can vary them)."""
+    call time, so tools can vary them). Hysteresis: a light whose ``current_sizes``
+    side is more than one octave above its flux side (lifted now) stays lifted while
+    the ratio exceeds ``min_ratio / 2^(0.5 + SHADOW_RES_HYSTERESIS_OCTAVES)``, so a
+    ratio that wanders around ``min_ratio`` does not flip the map by 2+ octaves at
+    every measurement."""
     min_ratio = limits.SHADOW_LIFT_MIN_RATIO if min_ratio is None else min_ratio
     if atlas_fraction is None:
         atlas_fraction = limits.SHADOW_LIFT_ATLAS_FRACTION
     ft = np.asarray(flux_target, dtype=np.float64)
     fp = np.asarray(footprint, dtype=np.float64)
     ratio = np.where(np.isnan(fp), 0.0, fp) / np.maximum(ft, _TARGET_FLOOR)
-    want = ratio > min_ratio
+    zero = np.zeros(len(ft), dtype=np.int64)
+    flux_side = apply_hysteresis(ft, zero, min_size, max_size)
+    threshold = np.full(len(ft), float(min_ratio))
+    if current_sizes is not None:
+        lifted_now = np.asarray(current_sizes, dtype=np.int64) > 2 * flux_side
+        keep = float(min_ratio) / 2.0 ** (0.5 + SHADOW_RES_HYSTERESIS_OCTAVES)
+        threshold = np.where(lifted_now, keep, threshold)
+    want = ratio > threshold
     if not want.any():
         return ft
     lifted = np.where(want, fp, ft)
     if budget_texels is None:
         return lifted
-    zero = np.zeros(len(ft), dtype=np.int64)
-    base = apply_hysteresis(ft, zero, min_size, max_size).astype(np.float64) ** 2
+    base = flux_side.astype(np.float64) ** 2
     up = apply_hysteresis(lifted, zero, min_size, max_size).astype(np.float64) ** 2
     order = np.argsort(-np.where(want, ratio, -np.inf), kind="stable")
     extra = np.where(want, up - base, 0.0)[order]

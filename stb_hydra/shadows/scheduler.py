@@ -396,6 +396,7 @@ class ShadowScheduler:
                 budget_texels=float(self.atlas.size) ** 2,
                 min_size=self.atlas.min_map,
                 max_size=self.atlas.max_map,
+                current_sizes=cur,
             )
         sizes = policy.sizes_from_target(
             target, cur, in_view, self.atlas.min_map, self.atlas.max_map
