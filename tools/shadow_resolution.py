@@ -4,14 +4,17 @@ up the policy's own target, ``--truth-scale``), with the reference method, offli
 (every map captured before the frame).
 
 Works on any revision whose scheduler calls ``stb_hydra.shadows.policy.target_texels``
-(the truth patches that function), so before / after comparisons run the same script:
+(the truth patches that function) and whose ``RenderSettings`` has ``shadow_resolution``
+(always passed: the truth and ``--resolution flux`` name "flux" whatever the default),
+so before / after comparisons run the same script:
 
     .venv/bin/python tools/shadow_resolution.py usd_scenes/default.usda --size 320x180
     python -m stb_hydra.scenegen.chess /tmp/chess64.usda --lights 64
     .venv/bin/python tools/shadow_resolution.py /tmp/chess64.usda --size 320x180
 
 Prints one JSON object per scene (``--json`` writes them). Figures: docs/PERFORMANCE.md
-"Map resolution against the screen footprint".
+"Map resolution against the screen footprint" and the sections after it ("lift":
+``--resolution lift``, ``--lift-ratio``).
 """
 
 from __future__ import annotations
