@@ -238,6 +238,14 @@ SHADOW_FOOTPRINT_DISPLAY_MIN = 0.01
 #: Cap of a receiver's slope factor cos(view) / cos(light) (a surface the light grazes
 #: stretches each texel by 1 / cos(light)): 4 = up to 2 octaves more on such walls.
 SHADOW_FOOTPRINT_SLOPE_MAX = 4.0
+#: "lift" (``RenderSettings.shadow_resolution``; ``policy.lift_targets``):
+#: a light keeps the flux rule's side unless its measured footprint asks for more
+#: than this many times the flux target (a continuous ratio, not octaves of the
+#: power-of-two sides, so it does not depend on where the rounding falls) ...
+SHADOW_LIFT_MIN_RATIO = 5.0
+#: ... and lifts are granted (largest ratio first) only while all the maps' nominal
+#: sides fit in this fraction of the atlas's texels.
+SHADOW_LIFT_ATLAS_FRACTION = 0.5
 #: Half-octave bins of the per-light histogram of the receivers' needs (sides 1 to
 #: 2^16 texels), and the fraction of a light's receivers whose need the map meets:
 #: 1.0 = all of them (the maximum, exact; below 1 the percentile's bin's upper edge).

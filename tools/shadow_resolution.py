@@ -4,14 +4,17 @@ up the policy's own target, ``--truth-scale``), with the reference method, offli
 (every map captured before the frame).
 
 Works on any revision whose scheduler calls ``stb_hydra.shadows.policy.target_texels``
-(the truth patches that function), so before / after comparisons run the same script:
+(the truth patches that function) and whose ``RenderSettings`` has ``shadow_resolution``
+(always passed: the truth and ``--resolution flux`` name "flux" whatever the default),
+so before / after comparisons run the same script:
 
     .venv/bin/python tools/shadow_resolution.py usd_scenes/default.usda --size 320x180
     python -m stb_hydra.scenegen.chess /tmp/chess64.usda --lights 64
     .venv/bin/python tools/shadow_resolution.py /tmp/chess64.usda --size 320x180
 
 Prints one JSON object per scene (``--json`` writes them). Figures: docs/PERFORMANCE.md
-"Map resolution against the screen footprint".
+"Map resolution against the screen footprint" and the sections after it ("lift":
+``--resolution lift``, ``--lift-ratio``).
 """
 
 from __future__ import annotations
@@ -53,7 +56,8 @@ def _render(
         policy.footprint_texels = scaled_fp  # type: ignore[assignment]
     try:
         stage = Usd.Stage.Open(scene)
-        extra: dict = {} if resolution == "flux" else {"shadow_resolution": resolution}
+        # Always named: the default changed (flux -> lift) and the truth is flux-sized.
+        extra: dict = {"shadow_resolution": resolution}
         if atlas_size:
             extra["shadow_atlas_size"] = atlas_size
         settings = RenderSettings(
@@ -122,6 +126,12 @@ def main() -> None:
         default=None,
         help="limits.SHADOW_FOOTPRINT_PERCENTILE for the policy's image (footprint, max)",
     )
+    ap.add_argument(
+        "--lift-ratio",
+        type=float,
+        default=None,
+        help="limits.SHADOW_LIFT_MIN_RATIO for the policy's image (lift)",
+    )
     ap.add_argument("--scale", type=float, default=1.0, help="scale of the policy's targets")
     ap.add_argument(
         "--resolution",
@@ -145,6 +155,10 @@ def main() -> None:
         from stb_hydra import limits
 
         limits.SHADOW_FOOTPRINT_PERCENTILE = a.percentile
+    if a.lift_ratio is not None:
+        from stb_hydra import limits as _limits
+
+        _limits.SHADOW_LIFT_MIN_RATIO = a.lift_ratio
     rows = []
     for scene in a.scenes:
         got = _render(scene, w, h, a.frames, a.scale, a.resolution)
@@ -155,6 +169,7 @@ def main() -> None:
             "resolution": a.resolution,
             "scale": a.scale,
             "percentile": a.percentile,
+            "lift_ratio": a.lift_ratio,
             **got,
         }
         if not a.no_truth:

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import limits
+from ..shadows.policy import DEFAULT_RESOLUTION
 from .common import EXIT_OK, CliError, fail, parse_options, parse_value
 
 DEFAULT_METHODS = "stb,reference,sun"
@@ -299,9 +300,10 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--shadow-resolution",
-        default="flux",
+        default=DEFAULT_RESOLUTION,
         help="comma-separated RenderSettings.shadow_resolution values, one record each: "
-        "flux (default), footprint, max (issue 33 item 5)",
+        "lift, flux, footprint, max (issue 33 item 5; default: "
+        "shadows.policy.DEFAULT_RESOLUTION)",
     )
     p.add_argument("--json", help="write the records (a JSON list) here")
     p.add_argument("--csv", help="write a CSV here (default with --json: beside it)")
@@ -431,7 +433,7 @@ def run_bench(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
-    shadow_resolutions: Sequence[str] = ("flux",),
+    shadow_resolutions: Sequence[str] = (DEFAULT_RESOLUTION,),
 ) -> list[dict[str, Any]]:
     """Every (scene, size, method, shadow resolution) -> one record (see the module doc)."""
     from tqdm import tqdm
@@ -488,7 +490,7 @@ def bench_one(
     shadow_budget: int | None = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT,
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
-    shadow_resolution: str = "flux",
+    shadow_resolution: str = DEFAULT_RESOLUTION,
 ) -> dict[str, Any]:
     """Measure one configuration on ``stage``; the engine is always released."""
     from ..renderer.engine import Engine, RenderError

@@ -53,6 +53,7 @@ from .render_index import RenderIndex
 from .tasks.aov_output import AovOutputTask
 from .tasks.base import Pass
 from .tasks.gbuffer import LINK_TARGET
+from .tasks.shadow_atlas import ShadowAtlasTask
 from .tasks.taa import AccumulateTask
 from .tasks.temporal import TemporalTask, halton_jitter
 
@@ -96,6 +97,8 @@ class Engine:
         self.warnings: list[str] = []
         self._seen_warnings: set[str] = set()
         self._in_sequence = False
+        #: The offline shadow-footprint probe ran (``_probe_footprint``).
+        self._footprint_probed = False
         self._requested_aovs: set[str] = {"color"}
         self._graph: CompiledGraph[Pass] | None = None
         #: Light linking when the graph was compiled (it adds the G-buffer's g_link).
@@ -321,6 +324,18 @@ class Engine:
     ) -> FrameContext:
         """One frame through all four phases. ``seed`` selects the frame's random
         sequence (stochastic methods); default: the frame counter."""
+        return self._frame(time, seed, final)
+
+    def _frame(
+        self,
+        time: float | None = None,
+        seed: int | None = None,
+        final: bool = True,
+        probe: bool = False,
+    ) -> FrameContext:
+        """``render_frame``; ``probe``: the shadow-footprint probe (``_probe_footprint``):
+        the shadow atlas frozen (lights registered, no map captured), the passes
+        executed up to the footprint pass only, the frame counter not advanced."""
         s = self.settings
         if not self._in_sequence or s.temporal == "off":
             self.accumulate.reset()  # a lone frame: no running average with older frames
@@ -363,11 +378,14 @@ class Engine:
                 continue
             with timed(self.timings, p.name, self.ctx, s.profile), self._scope(frame, p):
                 p.execute(frame)
+            if probe and p.name == "shadow_footprint":
+                break
         frame.buffers = self.buffers
         for w in frame.warnings:
             self._warn_once(w)
         park(self.ctx)
-        self.frame_index += 1
+        if not probe:
+            self.frame_index += 1
         self.timings.end_frame()
         frame.stats["programs_compiled"] = shader_library(self.ctx).compiled
         return frame
@@ -395,6 +413,7 @@ class Engine:
         marks = {int(c) for c in counts}
         if not marks or min(marks) < 1:
             raise ValueError(f"frame counts must be >= 1, got {sorted(marks)}")
+        self._probe_footprint(time)
         self.accumulate.reset()
         self._in_sequence = True
         try:
@@ -404,6 +423,32 @@ class Engine:
                     yield i, frame
         finally:
             self._in_sequence = False
+
+    def _probe_footprint(self, time: float | None) -> None:
+        """Offline renders (``render``, ``render_progressive``) under a footprint-based
+        ``shadow_resolution``: before the first frame's maps are captured, measure the
+        shadow footprint on one G-buffer (``_frame(probe=True)``: the atlas registers
+        the lights and places them at the flux rule's sides but captures nothing), so
+        the policy sizes every map of the first frame from it. Once per engine (later
+        calls find a measurement; the pass re-measures every policy interval; one probe
+        an engine when nothing was measured, e.g. no shadowed light in view)."""
+        if self._footprint_probed:
+            return
+        atlas = self.task("shadow_atlas")
+        fp = self.task("shadow_footprint")
+        if atlas is None or fp is None or fp not in self.graph.passes:
+            return
+        if not isinstance(atlas, ShadowAtlasTask) or atlas.footprint_measured:
+            return
+        if not atlas.enabled:
+            return
+        self._footprint_probed = True
+        frozen = atlas.frozen
+        atlas.frozen = True
+        try:
+            self._frame(time, final=False, probe=True)
+        finally:
+            atlas.frozen = frozen
 
     @property
     def aovs(self) -> dict[str, np.ndarray]:

@@ -12,6 +12,7 @@ import moderngl
 import numpy as np
 
 from .. import limits
+from ..shadows.policy import DEFAULT_RESOLUTION, RESOLUTION_MODES
 from .camera import ViewSetup
 from .frame_data import SunSetup
 from .records import DistantLights, InViewLights
@@ -55,11 +56,16 @@ class RenderSettings:
     #: batches; fastest on llvmpipe) or "one_pass" (one geometry-shader submission for
     #: all six faces; ``renderer.shadow_capture.CAPTURE_MODES``).
     shadow_capture_mode: str = "per_face"
-    #: Local shadow-map sides from "flux" (the light's projected influence sphere x
-    #: sqrt(flux); ``shadows.policy.target_texels``), "footprint" (what its receivers
-    #: need on screen, measured on the G-buffer by ``tasks/shadow_footprint.py``; one
-    #: policy interval behind) or "max" (the larger of the two).
-    shadow_resolution: str = "flux"
+    #: Local shadow-map sides (default ``shadows.policy.DEFAULT_RESOLUTION``, "flux"
+    #: today) from "lift" (the flux rule, lifted to the
+    #: footprint for the lights whose footprint asks for more than
+    #: ``limits.SHADOW_LIFT_MIN_RATIO`` x it, within the atlas budget;
+    #: ``shadows.policy.lift_targets``), "flux" (the light's projected influence
+    #: sphere x sqrt(flux); ``shadows.policy.target_texels``), "footprint" (what its
+    #: receivers need on screen, measured on the G-buffer by
+    #: ``tasks/shadow_footprint.py``; one policy interval behind) or "max" (the larger
+    #: of the two).
+    shadow_resolution: str = DEFAULT_RESOLUTION
     #: Local shadow filter: "pcf" (4-tap gather) or "stochastic" (gather + a random
     #: sub-texel offset per pixel and frame; converges softer under accumulation).
     shadow_filter: str = "pcf"
@@ -126,9 +132,9 @@ class RenderSettings:
                     f"per Mtriangle), or None; got {cc!r}"
                 )
             self.shadow_cost_coeffs = (float(cc[0]), float(cc[1]), float(cc[2]))
-        if self.shadow_resolution not in ("flux", "footprint", "max"):
+        if self.shadow_resolution not in RESOLUTION_MODES:
             raise ValueError(
-                f"shadow_resolution must be 'flux', 'footprint' or 'max'; "
+                f"shadow_resolution must be one of {RESOLUTION_MODES}; "
                 f"got {self.shadow_resolution!r}"
             )
         if self.shadow_capture_mode not in ("per_face", "one_pass"):

@@ -20,6 +20,16 @@ on the G-buffer, the side each light's receivers need on screen
 that ("footprint") or from the larger of the two ("max"); lights it did not measure
 (NaN) keep the flux rule.
 
+Lift rule (``"lift"``; meant to become ``DEFAULT_RESOLUTION``, which stays "flux"
+until the regression EXRs it changes are regenerated): the flux rule's sides, except
+for the lights whose measured footprint asks for more than ``SHADOW_LIFT_MIN_RATIO``
+times the flux target (the flux rule under-sizes them for what the camera sees: a
+small light beside the camera whose shadow falls at the viewer's feet); those get the
+footprint side. Lifts are granted highest ratio first while the atlas texels of the
+resulting power-of-two sides stay within ``SHADOW_LIFT_ATLAS_FRACTION`` of the atlas
+(``lift_targets``), so a lift never pushes the atlas past its budget; the flux
+rule's own sides are never reduced.
+
 Out-of-view lights (influence sphere outside the frustum, caller's test): keep their
 current size (no re-render churn when the camera turns; a light with no map yet gets
 ``min_size``) and get their priority scaled by ``SHADOW_OUT_OF_VIEW_PRIORITY_SCALE``,
@@ -30,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stb_hydra import limits
 from stb_hydra.limits import (
     SHADOW_FLUX_SCALE_RANGE,
     SHADOW_FOOTPRINT_TEXELS_PER_PIXEL,
@@ -42,11 +53,13 @@ from stb_hydra.limits import (
 )
 
 __all__ = [
+    "DEFAULT_RESOLUTION",
     "RESOLUTION_MODES",
     "apply_hysteresis",
     "choose_resolutions",
     "combine_targets",
     "footprint_texels",
+    "lift_targets",
     "light_priorities",
     "sizes_from_target",
     "target_texels",
@@ -55,7 +68,12 @@ __all__ = [
 #: Floor (texels) of the continuous target so log2 stays finite.
 _TARGET_FLOOR = 1.0e-3
 #: ``RenderSettings.shadow_resolution`` values.
-RESOLUTION_MODES = ("flux", "footprint", "max")
+RESOLUTION_MODES = ("lift", "flux", "footprint", "max")
+#: The default of ``RenderSettings.shadow_resolution``, the atlas task, the scheduler and
+#: ``stb bench --shadow-resolution``. "lift" changes 12 of the stored regression images
+#: (lights64, ies12: lights the flux rule under-sizes get lifted), so the switch waits
+#: for the lead to regenerate them (docs/PERFORMANCE.md, "lift").
+DEFAULT_RESOLUTION = "flux"
 
 
 def target_texels(
@@ -87,18 +105,90 @@ def footprint_texels(
     return np.asarray(need, dtype=np.float64) * texels_per_pixel
 
 
-def combine_targets(flux_target: np.ndarray, footprint: np.ndarray | None, mode: str) -> np.ndarray:
-    """The target side per light under ``mode`` (``RESOLUTION_MODES``): the flux rule,
-    the footprint (NaN where not measured: the flux rule), or the larger of both."""
+def combine_targets(
+    flux_target: np.ndarray,
+    footprint: np.ndarray | None,
+    mode: str,
+    budget_texels: float | None = None,
+    min_size: int = SHADOW_MAP_MIN_SIZE,
+    max_size: int = SHADOW_MAP_MAX_SIZE,
+    current_sizes: np.ndarray | None = None,
+) -> np.ndarray:
+    """The target side (texels) per light under ``mode`` (``RESOLUTION_MODES``): the
+    flux rule, the footprint (NaN where not measured: the flux rule), the larger of
+    both, or ``lift_targets`` (``budget_texels``: the atlas's texels, None: no cap;
+    ``current_sizes``: the sides now, for the lift's hysteresis)."""
     if mode not in RESOLUTION_MODES:
         raise ValueError(f"resolution mode {mode!r} not in {RESOLUTION_MODES}")
     ft = np.asarray(flux_target, dtype=np.float64)
     if mode == "flux" or footprint is None:
         return ft
     fp = np.asarray(footprint, dtype=np.float64)
+    if mode == "lift":
+        return lift_targets(
+            ft,
+            fp,
+            budget_texels,
+            min_size=min_size,
+            max_size=max_size,
+            current_sizes=current_sizes,
+        )
     got = np.where(np.isnan(fp), ft, fp)
     out = got if mode == "footprint" else np.maximum(ft, got)
     return np.maximum(out, _TARGET_FLOOR)
+
+
+def lift_targets(
+    flux_target: np.ndarray,
+    footprint: np.ndarray,
+    budget_texels: float | None,
+    *,
+    min_ratio: float | None = None,
+    atlas_fraction: float | None = None,
+    min_size: int = SHADOW_MAP_MIN_SIZE,
+    max_size: int = SHADOW_MAP_MAX_SIZE,
+    current_sizes: np.ndarray | None = None,
+) -> np.ndarray:
+    """Continuous sides (texels): ``flux_target``, except where the measured
+    ``footprint`` (texels; NaN: not measured) exceeds ``min_ratio`` x the flux target,
+    which get the footprint. Lifts are granted in decreasing footprint / flux ratio
+    while the texels of all nominal power-of-two sides (``sizes_from_target`` without
+    history, clamped to [min_size, max_size]) stay <= ``atlas_fraction`` x
+    ``budget_texels``; a lift that would pass it is dropped (the flux target kept),
+    so the lifts never take the atlas past the budget (the flux sides alone may).
+    None: ``limits.SHADOW_LIFT_MIN_RATIO`` / ``SHADOW_LIFT_ATLAS_FRACTION`` (read at
+    call time, so tools can vary them). Hysteresis: a light whose ``current_sizes``
+    side is more than one octave above its flux side (lifted now) stays lifted while
+    the ratio exceeds ``min_ratio / 2^(0.5 + SHADOW_RES_HYSTERESIS_OCTAVES)``, so a
+    ratio that wanders around ``min_ratio`` does not flip the map by 2+ octaves at
+    every measurement."""
+    min_ratio = limits.SHADOW_LIFT_MIN_RATIO if min_ratio is None else min_ratio
+    if atlas_fraction is None:
+        atlas_fraction = limits.SHADOW_LIFT_ATLAS_FRACTION
+    ft = np.asarray(flux_target, dtype=np.float64)
+    fp = np.asarray(footprint, dtype=np.float64)
+    ratio = np.where(np.isnan(fp), 0.0, fp) / np.maximum(ft, _TARGET_FLOOR)
+    zero = np.zeros(len(ft), dtype=np.int64)
+    flux_side = apply_hysteresis(ft, zero, min_size, max_size)
+    threshold = np.full(len(ft), float(min_ratio))
+    if current_sizes is not None:
+        lifted_now = np.asarray(current_sizes, dtype=np.int64) > 2 * flux_side
+        keep = float(min_ratio) / 2.0 ** (0.5 + SHADOW_RES_HYSTERESIS_OCTAVES)
+        threshold = np.where(lifted_now, keep, threshold)
+    want = ratio > threshold
+    if not want.any():
+        return ft
+    lifted = np.where(want, fp, ft)
+    if budget_texels is None:
+        return lifted
+    base = flux_side.astype(np.float64) ** 2
+    up = apply_hysteresis(lifted, zero, min_size, max_size).astype(np.float64) ** 2
+    order = np.argsort(-np.where(want, ratio, -np.inf), kind="stable")
+    extra = np.where(want, up - base, 0.0)[order]
+    room = atlas_fraction * float(budget_texels) - float(base.sum())
+    granted = np.zeros(len(ft), dtype=bool)
+    granted[order] = want[order] & (np.cumsum(extra) <= room)
+    return np.where(granted, lifted, ft)
 
 
 def apply_hysteresis(

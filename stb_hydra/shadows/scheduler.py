@@ -375,7 +375,7 @@ class ShadowScheduler:
         in_view: np.ndarray | None = None,
         texels_per_pixel: float = SHADOW_TEXELS_PER_PIXEL,
         footprint_need: np.ndarray | None = None,
-        resolution: str = "flux",
+        resolution: str = policy.DEFAULT_RESOLUTION,
     ) -> None:
         """Apply the resolution policy to ``keys`` (arrays aligned with them): set
         priorities, then shrink, then grow (highest priority first). Units: metres,
@@ -389,7 +389,15 @@ class ShadowScheduler:
         )
         if footprint_need is not None and resolution != "flux":
             fp = policy.footprint_texels(footprint_need)
-            target = policy.combine_targets(target, fp, resolution)
+            target = policy.combine_targets(
+                target,
+                fp,
+                resolution,
+                budget_texels=float(self.atlas.size) ** 2,
+                min_size=self.atlas.min_map,
+                max_size=self.atlas.max_map,
+                current_sizes=cur,
+            )
         sizes = policy.sizes_from_target(
             target, cur, in_view, self.atlas.min_map, self.atlas.max_map
         )

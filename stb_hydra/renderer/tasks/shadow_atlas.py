@@ -20,6 +20,7 @@ import moderngl
 import numpy as np
 
 from ... import limits
+from ...shadows import policy
 from ...shadows.atlas import ShadowAtlas
 from ...shadows.capture import (
     RECORD_FLOATS,
@@ -63,10 +64,11 @@ class ShadowAtlasTask(Pass):
         budget_ms: float | None = None,
         cost_coeffs: tuple[float, float, float] | None = None,
         capture_mode: str = "per_face",
-        resolution: str = "flux",
+        resolution: str = policy.DEFAULT_RESOLUTION,
     ) -> None:
         super().__init__(delegate)
-        #: Map sides from "flux", "footprint" or "max" (``RenderSettings.shadow_resolution``).
+        #: Map sides from "lift", "flux", "footprint" or "max"
+        #: (``RenderSettings.shadow_resolution``).
         self.resolution = resolution
         #: Footprint pass results: key -> need (texels at 1 texel/px), the frame measured,
         #: whether the policy has used them, whether a measurement is due now.
@@ -367,6 +369,11 @@ class ShadowAtlasTask(Pass):
         self._footprint_frame = fidx
         self._footprint_new = True
         self._footprint_due = False
+
+    @property
+    def footprint_measured(self) -> bool:
+        """The footprint pass has measured at least once (``Engine._probe_footprint``)."""
+        return self._footprint_frame >= 0
 
     def footprint(self, key: str) -> float | None:
         """Last measured need of ``key`` (texels at 1 texel/px; None: not measured)."""
