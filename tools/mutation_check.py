@@ -37,6 +37,8 @@ REPO = Path(__file__).resolve().parents[1]
 CLOSED = ("tests/test_closed_form_hard.py", "tests/test_render_closed_form.py")
 LIGHTS = ("tests/test_lights.py",)
 VALIDATE = ("tests/test_validate_limits.py", "tests/test_validate.py")
+STB_UNBIASED = "tests/test_stb.py::test_unbiased_mean_converges_to_reference"
+REUSE_UNBIASED = "tests/test_stb_reuse.py::test_unbiased_mean_converges_to_closed_form"
 
 
 @dataclass(frozen=True)
@@ -363,6 +365,48 @@ MUTANTS: tuple[Mutant, ...] = (
         "        if True:",
         ("tests/test_fuzz_regressions.py",),
         "non-finite or float32-overflowing mesh transforms drawn",
+    ),
+    # --- estimator biases the convergence tests must see (issue 32: they run fewer
+    # frames since; tests/convergence.py) ----------------------------------------------
+    Mutant(
+        "stb_select_one_floor",
+        "shaders/stb_smalltile.frag",
+        "float W = total / ph;",
+        "float W = total / (ph + floor_ph);",
+        (STB_UNBIASED,),
+        "STB quad/pixel selection: the defensive floor counted twice in the pick's pdf",
+    ),
+    Mutant(
+        "stb_stream_accept",
+        "shaders/stb_smalltile.frag",
+        "rng_float(rng) * total[j] <= w)",
+        "rng_float(rng) * total[j] <= 0.9 * w)",
+        (STB_UNBIASED,),
+        "STB small-tile streams: a candidate replaces the pick with 0.9 of its probability",
+    ),
+    Mutant(
+        "stb_stream_pdf_clamp",
+        "shaders/stb_smalltile.frag",
+        "total[j] / sel_p[j] : 0.0;",
+        "total[j] / max(sel_p[j], 1.5 * floor_ph) : 0.0;",
+        (STB_UNBIASED,),
+        "STB small-tile streams: the pick's pdf clamped from below (dim candidates darker)",
+    ),
+    Mutant(
+        "reuse_stream_accept",
+        "shaders/common/reservoir.glsl",
+        "if (u * s.wsum < w) {",
+        "if (u * s.wsum < 0.9 * w) {",
+        (REUSE_UNBIASED,),
+        "reuse reservoirs: a candidate replaces the pick with 0.9 of its probability",
+    ),
+    Mutant(
+        "reuse_share_mis_3pc",
+        "shaders/common/reuse_share.glsl",
+        "max(ws[k], 0.0) * P[k] / S : 0.0;",
+        "max(ws[k], 0.0) * P[k] / (1.03 * S) : 0.0;",
+        (REUSE_UNBIASED,),
+        "reuse quad sharing: MIS weights summing to 0.97 (3 % dark)",
     ),
 )
 

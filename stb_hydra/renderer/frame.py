@@ -56,8 +56,8 @@ class RenderSettings:
     #: batches; fastest on llvmpipe) or "one_pass" (one geometry-shader submission for
     #: all six faces; ``renderer.shadow_capture.CAPTURE_MODES``).
     shadow_capture_mode: str = "per_face"
-    #: Local shadow-map sides (default ``shadows.policy.DEFAULT_RESOLUTION``, "flux"
-    #: today) from "lift" (the flux rule, lifted to the
+    #: Local shadow-map sides (default ``shadows.policy.DEFAULT_RESOLUTION``, "lift")
+    #: from "lift" (the flux rule, lifted to the
     #: footprint for the lights whose footprint asks for more than
     #: ``limits.SHADOW_LIFT_MIN_RATIO`` x it, within the atlas budget;
     #: ``shadows.policy.lift_targets``), "flux" (the light's projected influence

@@ -20,8 +20,7 @@ on the G-buffer, the side each light's receivers need on screen
 that ("footprint") or from the larger of the two ("max"); lights it did not measure
 (NaN) keep the flux rule.
 
-Lift rule (``"lift"``; meant to become ``DEFAULT_RESOLUTION``, which stays "flux"
-until the regression EXRs it changes are regenerated): the flux rule's sides, except
+Lift rule (``"lift"``, ``DEFAULT_RESOLUTION``): the flux rule's sides, except
 for the lights whose measured footprint asks for more than ``SHADOW_LIFT_MIN_RATIO``
 times the flux target (the flux rule under-sizes them for what the camera sees: a
 small light beside the camera whose shadow falls at the viewer's feet); those get the
@@ -70,10 +69,10 @@ _TARGET_FLOOR = 1.0e-3
 #: ``RenderSettings.shadow_resolution`` values.
 RESOLUTION_MODES = ("lift", "flux", "footprint", "max")
 #: The default of ``RenderSettings.shadow_resolution``, the atlas task, the scheduler and
-#: ``stb bench --shadow-resolution``. "lift" changes 12 of the stored regression images
-#: (lights64, ies12: lights the flux rule under-sizes get lifted), so the switch waits
-#: for the lead to regenerate them (docs/PERFORMANCE.md, "lift").
-DEFAULT_RESOLUTION = "flux"
+#: ``stb bench --shadow-resolution``: "lift" (issue 33 item 5; it changed 12 of the stored
+#: regression images, lights64 and ies12, whose under-sized lights it lifts:
+#: docs/PERFORMANCE.md, "lift").
+DEFAULT_RESOLUTION = "lift"
 
 
 def target_texels(
