@@ -97,6 +97,8 @@ class StageChanges(StagePopulation):
         # Map prototype paths to every instance proxy.
         resync_roots = self._map_prototypes(resync_roots)
         props = self._map_prototype_props(props)
+        # A light the light filter left out: an edit may make the filter keep it.
+        resync_roots.update(p for p in props if p in self._skipped_lights)
         if "/" in resync_roots:
             self._full_rebuild()
             return
@@ -164,6 +166,7 @@ class StageChanges(StagePopulation):
         self._geom_cache.clear()
         self._mtlx_prims.clear()
         self.links.clear()
+        self._skipped_lights.clear()
         self._sorted_valid = False
         self._send_removed(removed)
         self._update_frame()
@@ -197,6 +200,10 @@ class StageChanges(StagePopulation):
                 for part in exp.meshes:
                     removed.append(str(part.prim.GetPath()))
         removed = [p for p in dict.fromkeys(removed) if p in self._entries]
+        if self._skipped_lights:  # the traversal below finds those still left out
+            self._skipped_lights = {
+                p for p in self._skipped_lights if p != root and not p.startswith(root + "/")
+            }
         self._remove_paths(removed)
         self._geom_cache.clear()
         self.xform_cache.Clear()

@@ -37,6 +37,16 @@ class StagePopulation(StageIndexBase):
             return prims.MATERIAL
         return None
 
+    def _keep_light(self, ptype: str, names: frozenset[str], usd_path: str) -> bool:
+        """Whether the light filter adds this prim (True for non-lights); a light left
+        out is remembered in ``_skipped_lights``."""
+        if ptype not in prims.LIGHT_TYPES or self._light_filter is None:
+            return True
+        if self._light_filter(ptype, names):
+            return True
+        self._skipped_lights.add(usd_path)
+        return False
+
     def _is_light(self, p: Usd.Prim) -> bool:
         return light_type_of(p) is not None
 
@@ -120,6 +130,11 @@ class StagePopulation(StageIndexBase):
             if ptype is None:
                 continue
             spath = str(path)
+            if self._light_filter is not None and not self._keep_light(ptype, names, spath):
+                if ptype == prims.MESH_LIGHT and self._is_mesh(p):
+                    tv = self._prim_time_varying(p, ptype, tvx_of[path], tvv_of[path])
+                    self._add_entry(StageEntry(spath, prims.MESH, p), tv, added)
+                continue
             tv = self._prim_time_varying(p, ptype, tvx_of[path], tvv_of[path])
             if ptype == prims.MESH_LIGHT and self._is_mesh(p):
                 # MeshLightAPI: the mesh is geometry too; the light gets its own path.
@@ -275,6 +290,9 @@ class StagePopulation(StageIndexBase):
         self._add_prototype_materials(exp, ipath, added)
         for part in exp.lights:
             ptype = light_type_of(part.prim) or prims.SPHERE_LIGHT
+            names = frozenset(part.prim.GetAuthoredPropertyNames())
+            if not self._keep_light(ptype, names, ipath):  # an edit re-expands it
+                continue
             base = self._prim_time_varying(part.prim, ptype, False, tvv)
             if inst_tv:
                 base.add(loc.XFORM)
