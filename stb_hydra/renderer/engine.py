@@ -441,7 +441,10 @@ class Engine:
 
     def request_aovs(self, names: Iterable[str]) -> None:
         """AOVs read back on the last frame of each render (``color`` always)."""
-        self._requested_aovs = set(names) | {"color"}
+        names = set(names)
+        if "lightcount" in names and self.scene_index.skipped_lights:
+            self._include_all_lights()  # it counts the local lights in reach of a pixel
+        self._requested_aovs = names | {"color"}
         self.aov_output.requested = self._requested_aovs
 
     def release(self) -> None:

@@ -102,7 +102,7 @@ class StageIndexBase(SceneIndex):
         self._light_filter: LightFilter | None = None
         #: USD prim paths of the lights ``_light_filter`` left out (a property edit on
         #: one re-traverses it: the edit may make the filter keep it).
-        self._skipped_lights: set[str] = set()
+        self._skipped_lights: dict[str, int] = {}
 
     # -- configuration --
     def _resolve_time(self, time) -> Usd.TimeCode:

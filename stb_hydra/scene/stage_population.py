@@ -37,14 +37,15 @@ class StagePopulation(StageIndexBase):
             return prims.MATERIAL
         return None
 
-    def _keep_light(self, ptype: str, names: frozenset[str], usd_path: str) -> bool:
-        """Whether the light filter adds this prim (True for non-lights); a light left
-        out is remembered in ``_skipped_lights``."""
+    def _keep_light(self, ptype: str, names: frozenset[str], usd_path: str, count: int = 1) -> bool:
+        """Whether the light filter adds this prim (True for non-lights); ``count``
+        lights left out are remembered under ``usd_path`` (the prim an edit re-traverses)
+        in ``_skipped_lights``."""
         if ptype not in prims.LIGHT_TYPES or self._light_filter is None:
             return True
         if self._light_filter(ptype, names):
             return True
-        self._skipped_lights.add(usd_path)
+        self._skipped_lights[usd_path] = self._skipped_lights.get(usd_path, 0) + count
         return False
 
     def _is_light(self, p: Usd.Prim) -> bool:
@@ -290,13 +291,13 @@ class StagePopulation(StageIndexBase):
         self._add_prototype_materials(exp, ipath, added)
         for part in exp.lights:
             ptype = light_type_of(part.prim) or prims.SPHERE_LIGHT
+            rows = np.nonzero(exp.proto_of_instance == part.proto_index)[0]
             names = frozenset(part.prim.GetAuthoredPropertyNames())
-            if not self._keep_light(ptype, names, ipath):  # an edit re-expands it
+            if not self._keep_light(ptype, names, ipath, len(rows)):  # an edit re-expands it
                 continue
             base = self._prim_time_varying(part.prim, ptype, False, tvv)
             if inst_tv:
                 base.add(loc.XFORM)
-            rows = np.nonzero(exp.proto_of_instance == part.proto_index)[0]
             for r in rows:
                 iid = int(exp.instance_ids[r])
                 lpath = instance_light_path(ipath, iid, part.rel_path)

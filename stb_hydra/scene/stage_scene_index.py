@@ -69,9 +69,9 @@ class StageSceneIndex(StageChanges):
 
     @property
     def skipped_lights(self) -> int:
-        """How many USD prims (lights, or instancers of lights) the light filter left
-        out (0: the index holds every light of the stage)."""
-        return len(self._skipped_lights)
+        """How many lights the light filter left out (a PointInstancer's: one per
+        instance; 0: the index holds every light of the stage)."""
+        return sum(self._skipped_lights.values())
 
     def set_light_filter(self, light_filter: LightFilter | None) -> None:
         """Change which light prims the index holds; when lights were left out before,
