@@ -154,3 +154,28 @@ def test_sun_engine_keeps_local_lights_of_a_stage_without_geometry(gl_ctx):
         assert "/far" in eng.delegate.lights
     finally:
         eng.release()
+
+
+def test_left_out_light_still_hands_its_state_to_its_children():
+    """A light the filter leaves out that has a child: the child's inherited transform
+    animation and visibility are those of an index that holds every light."""
+    stage = _stage(
+        'def SphereLight "moving"\n{\n'
+        "    double3 xformOp:translate.timeSamples = {0: (0, 0, 0), 10: (1, 0, 0)}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n'
+        '    def Mesh "child"\n    {\n        int[] faceVertexCounts = [3]\n'
+        "        int[] faceVertexIndices = [0, 1, 2]\n"
+        "        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n    }\n}\n"
+        'def SphereLight "leaf"\n{\n'
+        "    double3 xformOp:translate.timeSamples = {0: (0, 0, 0), 10: (1, 0, 0)}\n"
+        '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
+    )
+    si = StageSceneIndex(stage, light_filter=drawn_without_local_lighting)
+    full = StageSceneIndex(stage)
+    assert _types(si) == {"/moving/child": prims.MESH}
+    assert si.skipped_lights == 2
+    tv = si.time_varying_paths()
+    assert tv["/moving/child"] == full.time_varying_paths()["/moving/child"]
+    assert tv == {"/moving/child": full.time_varying_paths()["/moving/child"]}
+    si.close()
+    full.close()

@@ -48,6 +48,17 @@ class StagePopulation(StageIndexBase):
         self._skipped_lights[usd_path] = self._skipped_lights.get(usd_path, 0) + count
         return False
 
+    def _drops_leaf_light(self, p: Usd.Prim, names: frozenset[str]) -> bool:
+        """A light the filter leaves out, with no children and no composition arcs that
+        population reads (MaterialX references): nothing else needs its transform or
+        visibility state, so it costs no further USD query (True: skip it)."""
+        lt = light_type_of(p)
+        if lt is None or lt == prims.MESH_LIGHT or p.GetAllChildrenNames():
+            return False
+        if p.HasAuthoredReferences() or p.HasAuthoredPayloads():
+            return False
+        return not self._keep_light(lt, names, str(p.GetPath()))
+
     def _is_light(self, p: Usd.Prim) -> bool:
         return light_type_of(p) is not None
 
@@ -101,6 +112,8 @@ class StagePopulation(StageIndexBase):
             # One call for the authored names; everything unauthored has its
             # (constant) fallback, so most prims need no further USD queries.
             names = frozenset(p.GetAuthoredPropertyNames())
+            if self._light_filter is not None and self._drops_leaf_light(p, names):
+                continue
             own_tvx = False
             if "xformOpOrder" in names:
                 x = UsdGeom.Xformable(p)
