@@ -50,10 +50,18 @@ void main() {
     // The point loop reads each light's members only past its range test
     // (light_radiance_point_at); the others test the range before the Light argument
     // is copied from the SSBO (light_reaches).
+    // SKIP_UNREACHED: the lights out of a pixel's reach are stepped over in an inner
+    // loop of their own, not with `if (...) continue`: llvmpipe (and a GPU's SIMD
+    // group) runs an `if` body for the whole group whenever any lane takes it, but
+    // leaves a loop once every lane has; so each pixel steps over its own unreached
+    // lights and the shading body runs about as often as the group's busiest pixel has
+    // reached lights, not once per light. Same lights, same order per pixel: same sum.
     uint n = u_counts.x;
     uint i = 0u;
 #ifdef LOOP_POINT
     for (uint e = min(u_point_lights, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
@@ -62,28 +70,31 @@ void main() {
 #endif
 #ifdef LOOP_SPHERE_NARROW
     for (uint e = min(u_sphere_end, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance_sphere_narrow(lights[i], s);
     }
 #endif
 #ifdef LOOP_SPHERE_WIDE
     for (uint e = min(u_wide_sphere_end, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance_sphere_wide(lights[i], s);
     }
 #endif
 #ifdef LOOP_GENERAL
     for (; i < n; ++i) {
+        while (i < n && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= n) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;  // before the Light copy (as tiled)
         c += light_radiance(lights[i], s);
     }
 #endif

@@ -101,8 +101,10 @@ void main() {
 #endif
 #ifdef LOOP_GENERAL
                 for (; k < count; ++k) {
+                    // SKIP_UNREACHED (lighting_direct.frag, tiled_lighting.frag)
+                    while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+                    if (k >= count) break;
                     uint i = tree_lights[first + k];
-                    if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance(lights[i], s);
                 }
 #endif

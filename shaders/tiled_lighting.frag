@@ -90,11 +90,16 @@ void main() {
 #endif
 #ifdef LOOP_GENERAL
     for (; k < h.y; ++k) {
+        // SKIP_UNREACHED (lighting_direct.frag): entries out of the pixel's reach are
+        // stepped over in a loop (a SIMD group runs an `if` body whenever any lane takes
+        // it, but leaves a loop once every lane has). Only this loop: the same rewrite of
+        // the sphere loops changed images (not understood; issue 34 notes).
+        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;
+        if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;
         c += light_radiance(lights[i], s);
     }
 #endif

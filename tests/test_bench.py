@@ -191,7 +191,10 @@ def test_records_cover_every_combination(run):
     by_scene = {r["scene"]: r["scene_lights"] for r in recs}
     assert by_scene == {"gen:lights:12": 12, "gen:lights:60": 60}
     for r in recs:
-        assert 0 < r["lights"] <= r["scene_lights"]
+        if r["method"] == "sun":  # it holds no local lights (lighting.base.light_filter)
+            assert r["lights"] == 0
+        else:
+            assert 0 < r["lights"] <= r["scene_lights"]
 
 
 @pytest.mark.gl
@@ -239,3 +242,52 @@ def test_csv_and_plot_written(run):
     assert any(k.startswith("pass:lighting.stb_") for k in rows[0])
     png = (out / "bench.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+@pytest.mark.gl
+def test_rows_come_out_as_each_configuration_finishes(gl_ctx, tmp_path, capsys):
+    """A run stopped part-way still says where its time went (issue 34): each finished
+    configuration is printed and written to the CSV / JSON before the next starts."""
+    seen: list[tuple[int, int]] = []
+    js, cs = tmp_path / "b.json", tmp_path / "b.csv"
+    cases = bench.parse_scene("gen:lights:12")
+    methods = bench.parse_methods(["sun,bare"], {}, AVAIL)
+
+    def on_record(done):
+        # The files on disk hold exactly the configurations finished so far.
+        bench.write_text(str(js), json.dumps(done))
+        bench.write_text(str(cs), bench.records_csv(done))
+        seen.append((len(done), len(json.loads(js.read_text()))))
+
+    recs = bench.run_bench(
+        cases, methods, [(48, 27)], frames=1, warmup=1, progress=True, on_record=on_record
+    )
+    assert seen == [(1, 1), (2, 2)]
+    rows = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("row ")]
+    assert [r.split()[1] for r in rows] == ["sun", "bare"]
+    assert rows == [bench.row_line(r) for r in recs]
+    for r in recs:
+        assert 0 < r["setup_s"] < r["config_wall_s"] and r["config_cpu_s"] > 0
+        assert 0 < r["first_frame_s"] <= r["warmup_s"] < r["config_wall_s"]
+    assert [row["method"] for row in csv.DictReader(cs.open())] == ["sun", "bare"]
+    assert float(next(csv.DictReader(cs.open()))["config_cpu_s"]) == recs[0]["config_cpu_s"]
+
+
+def test_cli_writes_the_files_after_every_configuration(monkeypatch, tmp_path):
+    """The CLI hands run_bench a callback that rewrites --json / --csv (no GL: the
+    run is replaced by one that reports two records, then is interrupted)."""
+    rec = {"label": "x", "passes": {}, "timings": {}}
+    got: list[str] = []
+
+    def fake_run_bench(*a, on_record, **k):
+        on_record([rec])
+        got.append((tmp_path / "o.json").read_text())
+        on_record([rec, rec])
+        got.append((tmp_path / "o.json").read_text())
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(bench, "run_bench", fake_run_bench)
+    rc = cli_main(["bench", "gen:lights:5", "--json", str(tmp_path / "o.json"), "--no-plot"])
+    assert rc != 0  # interrupted, as a killed run
+    assert [len(json.loads(t)) for t in got] == [1, 2]
+    assert len(list(csv.DictReader((tmp_path / "o.csv").open()))) == 2

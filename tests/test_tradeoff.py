@@ -88,6 +88,30 @@ def read_csv(path):
         return list(csv.DictReader(f))
 
 
+def test_cli_cost_column_against_the_reference(scene_file, tmp_path):
+    """Issue 34: the table shows each exact / list method's frame as a multiple of the
+    reference's, and how much of the reference's light-pixel work its cells keep."""
+    out = tmp_path / "out"
+    argv = ["tradeoff", str(scene_file), "--methods", "tiled,clustered", "--tile-caps", "none"]
+    argv += ["--width", "64", "--height", "36", "--frames", "2", "--warmup", "0"]
+    rc = cli.main([*argv, "--mitsuba-spp", "0", "--no-hdr-flip", "--out", str(out)])
+    assert rc == 0
+    by = {r["label"]: r for r in read_csv(out / "tradeoff.csv")}
+    assert set(by) == {"reference", "tiled cap none", "clustered"}
+    ref_ms = float(by["reference"]["frame_ms"])
+    assert (
+        float(by["reference"]["x_reference"]) == 1.0 and by["reference"]["cell_light_share"] == ""
+    )
+    report = (out / "report.md").read_text()
+    for label in ("tiled cap none", "clustered"):
+        r = by[label]
+        assert float(r["x_reference"]) == pytest.approx(float(r["frame_ms"]) / ref_ms, abs=1e-3)
+        assert 0.0 < float(r["cell_light_share"]) <= 1.0
+        assert (
+            f"| {label} | {float(r['frame_ms']):.1f} | {float(r['x_reference']):.2f}x |" in report
+        )
+
+
 @pytest.mark.slow
 def test_cli_quick_grid(scene_file, tmp_path):
     out = tmp_path / "out"

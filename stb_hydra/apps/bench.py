@@ -34,6 +34,7 @@ import io
 import json
 import os
 import sys
+import time as _clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -385,6 +386,14 @@ def _run(args: argparse.Namespace) -> int:
         budget = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT
     cases = [c for spec in args.scenes for c in parse_scene(spec)]
     out_json, out_csv, out_plot = _output_paths(args)
+
+    def write_files(done: list[dict[str, Any]]) -> None:
+        # After every configuration: a run stopped part-way keeps the rows it finished.
+        if out_json:
+            write_text(out_json, json.dumps(done, indent=2, allow_nan=False) + "\n")
+        if out_csv:
+            write_text(out_csv, records_csv(done))
+
     records = run_bench(
         cases,
         methods,
@@ -400,11 +409,8 @@ def _run(args: argparse.Namespace) -> int:
         shadow_budget_ms=args.shadow_budget_ms,
         shadow_capture=args.shadow_capture,
         shadow_resolutions=_resolutions(args.shadow_resolution),
+        on_record=write_files,
     )
-    if out_json:
-        write_text(out_json, json.dumps(records, indent=2, allow_nan=False) + "\n")
-    if out_csv:
-        write_text(out_csv, records_csv(records))
     if out_plot:
         plot_records(records, out_plot)
     if not args.quiet:
@@ -434,8 +440,12 @@ def run_bench(
     shadow_budget_ms: float | None = None,
     shadow_capture: str = "per_face",
     shadow_resolutions: Sequence[str] = (DEFAULT_RESOLUTION,),
+    on_record: Callable[[list[dict[str, Any]]], None] | None = None,
 ) -> list[dict[str, Any]]:
-    """Every (scene, size, method, shadow resolution) -> one record (see the module doc)."""
+    """Every (scene, size, method, shadow resolution) -> one record (see the module doc).
+    As each configuration finishes, its row is printed to stderr (with ``progress``:
+    ``row_line``) and ``on_record`` gets the records so far (the CLI rewrites its JSON
+    and CSV), so a run stopped part-way still says where its time went."""
     from tqdm import tqdm
 
     total = len(cases) * len(sizes) * len(methods) * len(shadow_resolutions) * (frames + warmup)
@@ -444,7 +454,13 @@ def run_bench(
     try:
         for case in cases:
             bar.set_description(f"building {case.label}")
+            t0 = _clock.perf_counter()
             stage = case.build()
+            if progress:
+                bar.write(
+                    f"scene {case.label}: built in {_clock.perf_counter() - t0:.2f} s",
+                    file=sys.stderr,
+                )
             for size in sizes:
                 for m, res in ((m, r) for m in methods for r in shadow_resolutions):
                     bar.set_description(f"{m.label} {case.label} {size[0]}x{size[1]}")
@@ -466,6 +482,10 @@ def run_bench(
                         shadow_resolution=res,
                     )
                     records.append(rec)
+                    if progress:
+                        bar.write(row_line(rec), file=sys.stderr)
+                    if on_record is not None:
+                        on_record(records)
                     bar.update(frames + warmup - rec["frames"] - rec["warmup"])  # skipped
                     bar.set_postfix_str(f"{rec['frame_ms']:.1f} ms")
             del stage
@@ -512,10 +532,12 @@ def bench_one(
         shadow_resolution=shadow_resolution,
         method_options=dict(method.options),
     )
+    wall0, cpu0 = _clock.perf_counter(), _clock.process_time()
     try:
         eng = Engine(stage, settings, time=time)
     except (RenderError, GLError, ValueError) as exc:
         raise CliError(f"{method.label} on {scene_label}: {exc}") from None
+    setup_s = _clock.perf_counter() - wall0
     try:
         load_before = load_average()
         m = measure_engine(
@@ -526,13 +548,24 @@ def bench_one(
             on_frame=on_frame,
             max_seconds=max_seconds,
         )
+        # + the local lights a method without them left out (renderer.lighting.base.light_filter)
         scene_lights = int(eng.delegate.light_table.local_mask().sum())
+        scene_lights += eng.scene_index.skipped_lights
         renderer = eng.renderer_info
     except (RenderError, GLError) as exc:
         raise CliError(f"{method.label} on {scene_label}: {exc}") from None
     finally:
         eng.release()
     return {
+        # Where the configuration's time went (s): engine set-up (population, sync,
+        # pass graph), the first frame (shader compiles, first captures), all warm-up
+        # frames, and the whole configuration in wall and in process CPU time (every
+        # thread, llvmpipe's included: the load-independent figure on a shared machine).
+        "setup_s": _r(setup_s),
+        "first_frame_s": _r(m.first_frame_s),
+        "warmup_s": _r(m.warmup_s),
+        "config_wall_s": _r(_clock.perf_counter() - wall0),
+        "config_cpu_s": _r(_clock.process_time() - cpu0),
         "method": method.name,
         "label": method.label,
         "options": dict(method.options),
@@ -643,6 +676,11 @@ CSV_FIELDS = (
     "accounted_fraction",
     *CELL_FIELDS,
     "load_avg",
+    "setup_s",
+    "first_frame_s",
+    "warmup_s",
+    "config_wall_s",
+    "config_cpu_s",
 )
 
 
@@ -738,6 +776,18 @@ def plot_records(records: list[dict[str, Any]], path: str) -> None:
         raise
     finally:
         plt.close(fig)
+
+
+def row_line(r: dict[str, Any]) -> str:
+    """One finished configuration in a line: its frame medians and where its wall time
+    went (engine set-up, first frame, warm-up, whole) and its process CPU time."""
+    return (
+        f"row {r['label']} {r['scene']} {r['width']}x{r['height']}: "
+        f"frame {r['frame_ms']:.1f} ms (x{r['frames']}), lights {r['lights']}/"
+        f"{r['scene_lights']}; set-up {r['setup_s']:.2f} s, first frame "
+        f"{r['first_frame_s']:.2f} s, warm-up {r['warmup_s']:.2f} s, whole "
+        f"{r['config_wall_s']:.2f} s wall / {r['config_cpu_s']:.2f} s CPU"
+    )
 
 
 def _top_passes(r: dict[str, Any], k: int = 4) -> str:

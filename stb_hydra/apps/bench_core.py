@@ -52,6 +52,10 @@ class Measurement:
     #: that frame's end; None when it never happened (or the scene has no such stat).
     all_fresh_frame: int | None = None
     all_fresh_s: float | None = None
+    #: Wall seconds of the first frame (shader compiles, first shadow captures) and of
+    #: all the warm-up frames (the first included; 0 without warm-up).
+    first_frame_s: float = 0.0
+    warmup_s: float = 0.0
 
     def summary(self) -> dict[str, Any]:
         """Medians: ``frame_ms``, ``frame_ms_min/max``, ``passes``, ``gpu_ms``,
@@ -153,6 +157,10 @@ def measure_engine(
             t0 = _time.perf_counter()
             frame = engine.render_frame(time)
             wall = (_time.perf_counter() - t0) * 1e3
+            if i == 0:
+                m.first_frame_s = wall / 1e3
+            if i < warmup:
+                m.warmup_s += wall / 1e3
             if m.all_fresh_frame is None and frame.stats.get("shadow_stale_maps", 1) == 0:
                 m.all_fresh_frame = i
                 m.all_fresh_s = _time.perf_counter() - start

@@ -245,6 +245,8 @@ def _warn_no_lights(eng, args: argparse.Namespace, rep: Reporter) -> None:
     lights = [sp.light for sp in eng.delegate.lights.values() if sp.light is not None]
     if any(lp.enabled for lp in lights) or args.ambient > 0:
         return
+    if eng.scene_index.skipped_lights:
+        return  # it has local lights, which this method does not draw (light_filter)
     why = f"none of its {len(lights)} lights is enabled" if lights else "the stage has no lights"
     rep.warn(f"{why}: the image shows unlit (black) geometry; add a light or --ambient")
 

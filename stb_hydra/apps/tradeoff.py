@@ -82,6 +82,8 @@ CSV_FIELDS = [
     "frame_ms",
     "frame_ms_min",
     "frame_ms_max",
+    "x_reference",
+    "cell_light_share",
     "lighting_ms",
     "prepare_ms",
     "image_ms",

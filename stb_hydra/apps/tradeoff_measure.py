@@ -223,6 +223,7 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
     ref_disp_seq = [display_referred(f) for f in ref.images[:2]]
     u = run.unit
     frame_ms = _median(run.times)
+    share = [s["cell_light_share"] for s in run.stats if "cell_light_share" in s]
     base = {
         "scene": scene,
         "method": u.method,
@@ -234,6 +235,12 @@ def evaluate(run: Run, ref: Run, scene: str, args) -> list[dict]:
         "frame_ms": round(frame_ms, 3),
         "frame_ms_min": round(min(run.times), 3),
         "frame_ms_max": round(max(run.times), 3),
+        # The frame against the reference's (the cost side of the trade in one number).
+        "x_reference": round(frame_ms / _median(ref.times), 4),
+        # Cell-list methods: the share of the reference's light-pixel work their cells
+        # keep (mean lights per tile / cluster over the lights in view: for tiled, the
+        # mean share of the screen's tiles a light reaches); "" for the others.
+        "cell_light_share": round(_median(share), 4) if share else "",
         "lighting_ms": round(_median(run.lighting), 3),
         "prepare_ms": round(_median(run.prepare), 3),
         "fov_lights": int(run.stats[-1].get("fov_lights", 0)) if run.stats else 0,

@@ -47,7 +47,7 @@ from .gl import get_context, park, shader_library
 from .gl_delegate import GLRenderDelegate
 from .graph import FORMATS, CompiledGraph, Rec, Tex, compile_graph
 from .lighting import debug_aov_names, method_class
-from .lighting.base import LightingMethod
+from .lighting.base import LightingMethod, light_filter
 from .passes import IMPORTS, PassSet, build_passes
 from .render_index import RenderIndex
 from .tasks.aov_output import AovOutputTask
@@ -80,7 +80,10 @@ class Engine:
                 raise RenderError(str(exc)) from None
         self.stage = stage
         self.ctx = ctx or get_context()
-        self.scene_index = StageSceneIndex(stage, time)
+        # Lights the method cannot show are not populated (set_lighting adds them).
+        self.scene_index = StageSceneIndex(
+            stage, time, light_filter=light_filter(method_class(self.settings.lighting))
+        )
         self.delegate = GLRenderDelegate(self.ctx)
         if self.settings.texture_budget_mib is not None:
             mib = self.settings.texture_budget_mib
@@ -110,6 +113,9 @@ class Engine:
         )
         self._set: PassSet = self._build_passes()
         self._sync(None)  # first sync so bounds/cameras are known
+        if self.scene_index.skipped_lights and not self.delegate.batches:
+            # No geometry: the local lights frame the camera and make the stage non-empty.
+            self._include_all_lights()
         self._choose_camera()
         if not self.settings.height:
             cam, _ = self.camera()
@@ -158,6 +164,8 @@ class Engine:
         """Switch the lighting method (and its options) on a live engine; the scene,
         the shadow atlas and the render buffers are kept."""
         method = self._make_method(name, options)  # validates before anything changes
+        if method.uses_local_lights and self.scene_index.skipped_lights:
+            self._include_all_lights()
         # Debug views the new method does not draw are no longer asked for.
         methods_views = set(debug_aov_names())
         self._requested_aovs = {
@@ -236,6 +244,11 @@ class Engine:
         from .gl import renderer_info
 
         return renderer_info(self.ctx)
+
+    def _include_all_lights(self) -> None:
+        """Populate and sync the lights the scene index left out (see ``light_filter``)."""
+        self.scene_index.set_light_filter(None)
+        self._sync(None)
 
     # -- camera --
     def _choose_camera(self) -> None:
@@ -473,7 +486,10 @@ class Engine:
 
     def request_aovs(self, names: Iterable[str]) -> None:
         """AOVs read back on the last frame of each render (``color`` always)."""
-        self._requested_aovs = set(names) | {"color"}
+        names = set(names)
+        if "lightcount" in names and self.scene_index.skipped_lights:
+            self._include_all_lights()  # it counts the local lights in reach of a pixel
+        self._requested_aovs = names | {"color"}
         self.aov_output.requested = self._requested_aovs
 
     def release(self) -> None:

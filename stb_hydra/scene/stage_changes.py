@@ -97,6 +97,10 @@ class StageChanges(StagePopulation):
         # Map prototype paths to every instance proxy.
         resync_roots = self._map_prototypes(resync_roots)
         props = self._map_prototype_props(props)
+        # A light the light filter left out (or inside an instancer of one left out):
+        # an edit may make the filter keep it.
+        if self._skipped_lights:
+            resync_roots.update(r for p in props if (r := self._skipped_root(p)))
         if "/" in resync_roots:
             self._full_rebuild()
             return
@@ -154,6 +158,15 @@ class StageChanges(StagePopulation):
                 out[p].update(names)
         return out
 
+    def _skipped_root(self, path: str) -> str | None:
+        """The ``_skipped_lights`` key at or above ``path`` (None: none)."""
+        p = path
+        while p and p != "/":
+            if p in self._skipped_lights:
+                return p
+            p = p.rsplit("/", 1)[0]
+        return None
+
     def _full_rebuild(self) -> None:
         removed = list(self._entries)
         self._entries.clear()
@@ -164,6 +177,7 @@ class StageChanges(StagePopulation):
         self._geom_cache.clear()
         self._mtlx_prims.clear()
         self.links.clear()
+        self._skipped_lights.clear()
         self._sorted_valid = False
         self._send_removed(removed)
         self._update_frame()
@@ -197,6 +211,12 @@ class StageChanges(StagePopulation):
                 for part in exp.meshes:
                     removed.append(str(part.prim.GetPath()))
         removed = [p for p in dict.fromkeys(removed) if p in self._entries]
+        if self._skipped_lights:  # the traversal below finds those still left out
+            self._skipped_lights = {
+                p: n
+                for p, n in self._skipped_lights.items()
+                if p != root and not p.startswith(root + "/")
+            }
         self._remove_paths(removed)
         self._geom_cache.clear()
         self.xform_cache.Clear()

@@ -12,6 +12,7 @@ from __future__ import annotations
 import bisect
 import math
 from collections import defaultdict
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,6 +28,12 @@ from .links import LinkResolver
 from .materials import bound_material_path
 from .scene_index import SceneIndex
 from .stage_data_sources import StageEntry
+
+#: ``(light type, the prim's authored property names) -> add it?``: which light prims
+#: population adds (a render delegate's supported sprim types, Hydra's
+#: ``HdRenderDelegate::GetSupportedSprimTypes``, refined by what a light needs: see
+#: ``renderer.engine``). Prims that are meshes too (MeshLightAPI) keep their mesh.
+LightFilter = Callable[[str, frozenset[str]], bool]
 
 _Z_TO_Y = np.array(
     [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
@@ -91,6 +98,11 @@ class StageIndexBase(SceneIndex):
         self.links = LinkResolver(stage, self.warn_once)
         self._update_frame()
         self._listener: Tf.Listener | None = None
+        #: Which light prims population adds (None: all); see ``LightFilter``.
+        self._light_filter: LightFilter | None = None
+        #: USD prim paths of the lights ``_light_filter`` left out (a property edit on
+        #: one re-traverses it: the edit may make the filter keep it).
+        self._skipped_lights: dict[str, int] = {}
 
     # -- configuration --
     def _resolve_time(self, time) -> Usd.TimeCode:

@@ -37,6 +37,28 @@ class StagePopulation(StageIndexBase):
             return prims.MATERIAL
         return None
 
+    def _keep_light(self, ptype: str, names: frozenset[str], usd_path: str, count: int = 1) -> bool:
+        """Whether the light filter adds this prim (True for non-lights); ``count``
+        lights left out are remembered under ``usd_path`` (the prim an edit re-traverses)
+        in ``_skipped_lights``."""
+        if ptype not in prims.LIGHT_TYPES or self._light_filter is None:
+            return True
+        if self._light_filter(ptype, names):
+            return True
+        self._skipped_lights[usd_path] = self._skipped_lights.get(usd_path, 0) + count
+        return False
+
+    def _drops_leaf_light(self, p: Usd.Prim, names: frozenset[str]) -> bool:
+        """A light the filter leaves out, with no children and no composition arcs that
+        population reads (MaterialX references): nothing else needs its transform or
+        visibility state, so it costs no further USD query (True: skip it)."""
+        lt = light_type_of(p)
+        if lt is None or lt == prims.MESH_LIGHT or p.GetAllChildrenNames():
+            return False
+        if p.HasAuthoredReferences() or p.HasAuthoredPayloads():
+            return False
+        return not self._keep_light(lt, names, str(p.GetPath()))
+
     def _is_light(self, p: Usd.Prim) -> bool:
         return light_type_of(p) is not None
 
@@ -90,6 +112,8 @@ class StagePopulation(StageIndexBase):
             # One call for the authored names; everything unauthored has its
             # (constant) fallback, so most prims need no further USD queries.
             names = frozenset(p.GetAuthoredPropertyNames())
+            if self._light_filter is not None and self._drops_leaf_light(p, names):
+                continue
             own_tvx = False
             if "xformOpOrder" in names:
                 x = UsdGeom.Xformable(p)
@@ -120,6 +144,11 @@ class StagePopulation(StageIndexBase):
             if ptype is None:
                 continue
             spath = str(path)
+            if self._light_filter is not None and not self._keep_light(ptype, names, spath):
+                if ptype == prims.MESH_LIGHT and self._is_mesh(p):
+                    tv = self._prim_time_varying(p, ptype, tvx_of[path], tvv_of[path])
+                    self._add_entry(StageEntry(spath, prims.MESH, p), tv, added)
+                continue
             tv = self._prim_time_varying(p, ptype, tvx_of[path], tvv_of[path])
             if ptype == prims.MESH_LIGHT and self._is_mesh(p):
                 # MeshLightAPI: the mesh is geometry too; the light gets its own path.
@@ -275,10 +304,13 @@ class StagePopulation(StageIndexBase):
         self._add_prototype_materials(exp, ipath, added)
         for part in exp.lights:
             ptype = light_type_of(part.prim) or prims.SPHERE_LIGHT
+            rows = np.nonzero(exp.proto_of_instance == part.proto_index)[0]
+            names = frozenset(part.prim.GetAuthoredPropertyNames())
+            if not self._keep_light(ptype, names, ipath, len(rows)):  # an edit re-expands it
+                continue
             base = self._prim_time_varying(part.prim, ptype, False, tvv)
             if inst_tv:
                 base.add(loc.XFORM)
-            rows = np.nonzero(exp.proto_of_instance == part.proto_index)[0]
             for r in rows:
                 iid = int(exp.instance_ids[r])
                 lpath = instance_light_path(ipath, iid, part.rel_path)

@@ -37,7 +37,7 @@ from .stage_data_sources import (
     MeshDataSource,
     StageEntry,
 )
-from .stage_index_base import render_from_stage_matrix
+from .stage_index_base import LightFilter, render_from_stage_matrix
 
 __all__ = [
     "CameraDataSource",
@@ -53,10 +53,33 @@ __all__ = [
 class StageSceneIndex(StageChanges):
     """Scene index over a ``Usd.Stage``. See the module docstring."""
 
-    def __init__(self, stage: Usd.Stage, time: float | Usd.TimeCode | None = None) -> None:
+    def __init__(
+        self,
+        stage: Usd.Stage,
+        time: float | Usd.TimeCode | None = None,
+        *,
+        light_filter: LightFilter | None = None,
+    ) -> None:
+        """``light_filter``: which light prims to add (None: every one; see
+        ``stage_index_base.LightFilter``)."""
         super().__init__(stage, time)
+        self._light_filter = light_filter
         self._listener = Tf.Notice.Register(Usd.Notice.ObjectsChanged, self._on_changed, stage)
         self._populate_all()
+
+    @property
+    def skipped_lights(self) -> int:
+        """How many lights the light filter left out (a PointInstancer's: one per
+        instance; 0: the index holds every light of the stage)."""
+        return sum(self._skipped_lights.values())
+
+    def set_light_filter(self, light_filter: LightFilter | None) -> None:
+        """Change which light prims the index holds; when lights were left out before,
+        the stage is populated again (PrimsRemoved of everything, then PrimsAdded)."""
+        had_skipped = bool(self._skipped_lights)
+        self._light_filter = light_filter
+        if had_skipped or light_filter is not None:
+            self._full_rebuild()
 
     # -- SceneIndex queries --
     def get_prim(self, path: str) -> SceneIndexPrim | None:

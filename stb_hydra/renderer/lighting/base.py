@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, cast
 import moderngl
 import numpy as np
 
+from ...scene import prims
 from ..dome_shadows import SkyOcclusion
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
@@ -142,6 +143,8 @@ class LightingMethod:
     #: the error when an instance without them is asked for one).
     debug_aov_requires: ClassVar[dict[str, str]] = {}
     #: True when the method evaluates local lights (culling, light buffer, atlas).
+    #: False: the engine's scene index does not even hold the local lights its images
+    #: cannot show (``light_filter``).
     uses_local_lights: ClassVar[bool] = True
     #: Min/max depth pyramid level the method samples (0: none); may depend on options.
     hiz_level: int = 0
@@ -389,3 +392,22 @@ def program(frame: FrameContext, frag: str, defines: dict[str, object]) -> moder
 
 
 __all__ = ["TAA_INPUTS", "LightingMethod", "program", "set_uniform"]
+
+
+def drawn_without_local_lighting(light_type: str, names: frozenset[str]) -> bool:
+    """Whether a method that does not evaluate local lights (``uses_local_lights``
+    False: ``sun``) still draws something of a light of ``light_type`` with these
+    authored properties: every non-local light (distant, dome, portal), a baked light
+    (``stb:baked``: the lightmap pass evaluates it where a mesh has no lightmap) and a
+    textured RectLight (the camera may see its texture,
+    ``GLRenderDelegate.seen_rect_emitters``). A ``stage_index_base.LightFilter``."""
+    if light_type not in prims.LOCAL_LIGHT_TYPES or "stb:baked" in names:
+        return True
+    return light_type == prims.RECT_LIGHT and any(n.endswith("texture:file") for n in names)
+
+
+def light_filter(method: type[LightingMethod]) -> Callable[[str, frozenset[str]], bool] | None:
+    """The scene index's light filter for ``method`` (None: every light): Hydra's
+    supported sprim types (``HdRenderDelegate::GetSupportedSprimTypes``) for a method
+    without local lights, so that they are neither populated, synced nor uploaded."""
+    return None if method.uses_local_lights else drawn_without_local_lighting
