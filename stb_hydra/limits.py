@@ -475,6 +475,13 @@ STB_BIGTILE_SHAPE_FLOOR = 0.1
 #: wherever the light may reach a pixel between the points (unbiased).
 STB_REUSE_SLOT_GRID = 4
 STB_REUSE_SLOT_SHAPE_FLOOR = 0.01
+#: The cone of a slot's light is not in that maximum: each pixel applies it (cos space,
+#: a third slot texel). Its cutoff is widened by this fraction (relative, of the cutoff
+#: angle) so rounding never zeroes the target where the shading is still > 0, and its
+#: soft band (cos(smooth start) - cos(cutoff), unitless) is at least the second value
+#: (hard cones: a target that falls to 0 over that band just inside the edge).
+STB_REUSE_SLOT_CONE_MARGIN = 1e-3
+STB_REUSE_SLOT_CONE_MIN_DCOS = 1e-5
 
 # --- STB interleaving patterns --------------------------------------------------------
 

@@ -95,7 +95,8 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         # combined at each pixel by the balance heuristic (fine-derivative exchange).
         ({"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share"}, 3e-3),
         # ... with the per-slot target (the shaping once per big-tile slot; the pixel's
-        # part from two texels, a rational stand-in for the specular pow).
+        # part from three texels -- the cone per pixel -- and a rational stand-in for the
+        # specular pow).
         (
             {"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
             3e-3,
@@ -153,37 +154,33 @@ TILE_SPOTS = dict(
 @pytest.mark.parametrize("extra", [{}, {"reuse_res": "share"}])
 @pytest.mark.slow
 def test_tile_target_unbiased_with_spot_cones(gl_ctx, extra):
-    """``reuse_target=tile`` takes a light's cone once per big-tile slot (the maximum
-    over a grid of the tile's surface points, floored): with 96 narrow spots whose cone
-    edges cross the tiles the mean of the frames still converges to the reference --
-    the image mean within 1 % and the error falling ~1/M from 64 to 256 frames (weight
-    cap off)."""
+    """``reuse_target=tile`` takes a light's cone per pixel from its slot's texels (cos
+    space, the cutoff widened a hair): with 96 narrow spots whose cone edges cross the
+    tiles the mean of the frames converges to the reference --
+    the image mean within 1 % and the error falling from 64 to 256 frames by more than
+    2x (weight cap off; a bias floor would stop it). The full target falls 3.0x (per
+    pixel) and 2.3x (share: the quad's correlated picks; then 5.4x from 256 to 1,024
+    frames) on this scene, tile 3.0x and 2.3x (docs/STB_NOTES.md)."""
     stage, ref = spot_scene_and_reference()
     assert ref.mean() > 0.0 and (ref < 1e-3 * ref.max()).mean() > 0.05  # dark outside cones
     opts = dict(TILE_SPOTS, **extra)
-    e64 = relmse(
-        stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=64, **opts)[..., 0],
-        ref,
-    )
-    img = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **opts)
+    imgs = stb_hydra.render_progressive(stage, (64, 256), width=W, height=H, lighting="stb", **opts)
+    e64, img = relmse(imgs[64][..., 0], ref), imgs[256]
     got = img[..., 0]
     assert np.isfinite(img).all()
-    assert relmse(got, ref) < e64 / 3.0, (e64, relmse(got, ref))
+    assert relmse(got, ref) < e64 / 2.0, (e64, relmse(got, ref))
     assert abs(got.mean() / ref.mean() - 1.0) < 0.01
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="narrow cones between the slot grid's points sit at the 1 % floor: fireflies "
-    "(relMSE 0.043 at 256 frames against 8.5e-4 with the full target; docs/STB_NOTES.md)",
-)
 @pytest.mark.slow
 def test_tile_target_matches_full_target_noise_with_spot_cones(gl_ctx):
-    """The quality the tile target should reach on narrow spots: the full target's
-    256-frame error (8.5e-4) within a factor of 6."""
+    """The tile target takes the cone per pixel (a third slot texel, cos space), so on
+    narrow spots it reaches the full target's 256-frame error (8.5e-4) within a factor of
+    3 (with the cone in the per-tile maximum, floored at 1 %, it was 0.043: fireflies
+    where a cone fell between the grid's points)."""
     stage, ref = spot_scene_and_reference()
     got = stb_hydra.render(stage, width=W, height=H, lighting="stb", accumulate=256, **TILE_SPOTS)
-    assert relmse(got[..., 0], ref) <= 5e-3
+    assert relmse(got[..., 0], ref) <= 2.5e-3
 
 
 def test_reuse_off_is_todays_pipeline(gl_ctx, many_lights):
