@@ -198,6 +198,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_REUSE_SLOT_SHAPE_FLOOR": f"{limits.STB_REUSE_SLOT_SHAPE_FLOOR:.6f}",
         "LIM_REUSE_SLOT_CONE_MARGIN": f"{limits.STB_REUSE_SLOT_CONE_MARGIN:.6e}",
         "LIM_REUSE_SLOT_CONE_MIN_DCOS": f"{limits.STB_REUSE_SLOT_CONE_MIN_DCOS:.6e}",
+        "LIM_REUSE_IES_COS_BINS": str(limits.STB_REUSE_IES_COS_BINS),
         "LIM_AREA_POINT_RATIO": f"{limits.AREA_POINT_RATIO:.6f}",
         "LIM_AREA_POLY_VERTS": str(limits.AREA_POLY_VERTS),
         "LIM_DOME_SAMPLES": str(limits.DOME_REFERENCE_SAMPLES),
