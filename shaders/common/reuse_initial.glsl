@@ -48,13 +48,14 @@ float reuse_cheap_target(uint li, Surface s, uint group) {
 #endif
 
 #ifdef STB_REUSE_SLOT_TARGET
-// -o reuse_target=tile: the pixel's part of the initial target from the slot's three
+// -o reuse_target=tile: the pixel's part of the initial target from the slot's four
 // texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent, the
-// cone in cos space): the point form of common/stb_target.glsl (area horizon, Lambert +
-// Blinn-Phong, + eps x the facing illuminance x BRDF) with the IES and emission shaping
-// taken towards the tile, the cone at this pixel. > 0 wherever the light is in range
-// and inside its cone (the tile's shaping is floored; the cone's cutoff is widened a
-// hair): unbiased.
+// cone in cos space, the IES axis + layer): the point form of common/stb_target.glsl
+// (area horizon, Lambert + Blinn-Phong, + eps x the facing illuminance x BRDF) with the
+// emission shaping taken towards the tile, the cone and the IES table (its maximum over
+// phi, gl_delegate.ies_cos_rowmax) at this pixel. > 0 wherever the light is in range,
+// inside its cone and its table is > 0 (the tile's shaping is floored; the cone's
+// cutoff is widened a hair; the table's lookup never falls below it): unbiased.
 uniform sampler2D u_slot_pos;    // rgba32f: light position (m), range (m)
 uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt, index
 uniform sampler2D u_slot_cone;   // rgba32f: axis / dc, (cos cutoff + dc) / dc (0: no cone)
