@@ -1,19 +1,27 @@
 // STB reuse (issue 31), -o reuse_target=tile: the per-slot half of the initial target,
 // one fragment per big-tile reservoir slot (the stb_bigtile texture's layout). The
-// light's shaping -- cone x IES x emission model x focusTint, the part of the target
-// that costs the most per candidate on llvmpipe (acos, an IES texture lookup, a branch
+// light's shaping without its cone -- IES x emission model x focusTint, the part of the
+// target that costs the most per candidate on llvmpipe (an IES texture lookup, a branch
 // per light type that every lane runs) -- is evaluated once per slot, towards the
 // maximum over a grid of the G-buffer's surface points of the pixels that may use the
 // tile (LIM_REUSE_SLOT_GRID^2, over the tile +- half a tile) and the tile's central
 // segment's point nearest the light, floored at LIM_REUSE_SLOT_SHAPE_FLOOR so the
-// target stays > 0 wherever the light may reach a pixel (unbiased; a looser fit where a
-// cone edge or an IES lobe crosses the tile between the grid's points). The
-// pixel's part (common/reuse_initial.glsl: reuse_slot_target) is then distance,
-// range window, horizon and BRDF only, from these two texels and no light record.
+// target stays > 0 wherever the light may reach a pixel (unbiased). The cone and the
+// IES table are left to the pixel, in cos space from two more texels (o_cone, o_ies: no
+// acos; a narrow cone or IES lobe between the grid's points would otherwise sit at the
+// floor, and its pixels' picks carry ~100x weights: fireflies). A light with an IES
+// angleScale keeps its table in the grid's maximum (o_ies.w = -1). The pixel's part
+// (common/reuse_initial.glsl: reuse_slot_target) is then distance, range window, cone,
+// IES, horizon and BRDF, from these four texels and no light record.
 //   o_pos:   light position (m, world), influence range (m)
-//   o_shape: x luminous intensity x shaping towards the tile (cd, luminance),
+//   o_shape: x luminous intensity x shaping (no cone) towards the tile (cd, luminance),
 //            y half extent (m; 0: a point light), z W_bt (the slot's contribution
 //            weight), w light index in the FoV list (float; -1: empty slot)
+//   o_cone:  the cone's falloff as t = clamp(w - dot(dir, xyz), 0, 1), dir the unit
+//            direction leaving the light, shape 1 - t^2 (3 - 2 t): xyz the emission
+//            axis / dc, w (cos cutoff + dc) / dc, dc = cos(smooth start) - cos(cutoff)
+//            (>= LIM_REUSE_SLOT_CONE_MIN_DCOS); 0 (shape 1) for lights without a cone
+//   o_ies:   xyz the emission axis (unit), w the IES layer (-1: none, or in o_shape.x)
 #include "common/frame.glsl"
 #include "common/gbuffer.glsl"
 #include "common/packing.glsl"
@@ -25,12 +33,33 @@ uniform ivec2 u_block;         // slot block per big tile (K = x * y)
 
 layout(location = 0) out vec4 o_pos;
 layout(location = 1) out vec4 o_shape;
+layout(location = 2) out vec4 o_cone;
+layout(location = 3) out vec4 o_ies;
 
-// cone x IES x emission model of L towards the point X (leaving the light).
-float slot_shape(Light L, vec3 X) {
+// IES (unless per pixel: ies_pixel) x emission model of L towards the point X (leaving
+// the light); the cone is the pixel's (o_cone): cone.y past CONE_CUTOFF_TEST_RAD skips it.
+float slot_shape(Light L, vec3 X, bool ies_pixel) {
     vec3 d = X - L.pos_range.xyz;
     vec3 w = d / max(length(d), 1e-12);
-    return light_shape_scalar(L, w) * emission_shape(L, w);
+    vec4 no_cone = vec4(L.cone.x, 2.0 * CONE_CUTOFF_TEST_RAD + 4.0, L.cone.zw);
+    vec4 tint_ies = ies_pixel ? vec4(L.tint_ies.rgb, -1.0) : L.tint_ies;
+    return light_shape_scalar_m(L.axis_emit, no_cone, tint_ies, L.tangent_tex.xyz, L.ies_shadow.y, w)
+         * emission_shape(L, w);
+}
+
+// o_cone for L (see the header): the cone light_shape_scalar_m applies, in cos space.
+vec4 slot_cone(Light L) {
+#ifdef HAS_CONES
+    if (L.cone.y < CONE_CUTOFF_TEST_RAD) {
+        // the cutoff a hair wide so that rounding never zeroes the target where the
+        // shading (acos against the cutoff) is still > 0
+        float c_cut = cos(min(L.cone.y * (1.0 + LIM_REUSE_SLOT_CONE_MARGIN), PI));
+        float c_start = L.cone.y > L.cone.z ? cos(max(L.cone.z, 0.0)) : c_cut;
+        float dc = max(c_start - c_cut, LIM_REUSE_SLOT_CONE_MIN_DCOS);
+        return vec4(L.axis_emit.xyz / dc, (c_cut + dc) / dc);
+    }
+#endif
+    return vec4(0.0);
 }
 
 void main() {
@@ -40,9 +69,16 @@ void main() {
     float Wj = sample_weight(smp);
     o_pos = vec4(0.0);
     o_shape = vec4(0.0, 0.0, 0.0, -1.0);
+    o_cone = vec4(0.0);
+    o_ies = vec4(0.0, 0.0, 0.0, -1.0);
     if (li == LIM_EMPTY_LIGHT_INDEX || li >= u_counts.x || !(Wj > 0.0)) return;
     Light L = lights[li];
     ivec2 tile = p / u_block;
+#ifdef HAS_IES
+    bool ies_pixel = L.tint_ies.w >= 0.0 && L.ies_shadow.y == 0.0;
+#else
+    bool ies_pixel = false;
+#endif
     // The maximum over a grid of surface points of the pixels that may use this tile
     // (the tile +- half a tile), and the tile's central segment's point nearest the
     // light (always: covers background-only grids).
@@ -52,7 +88,7 @@ void main() {
     vec3 ab = B - A;
     float t = clamp(dot(L.pos_range.xyz - A, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
     vec3 Xbest = A + t * ab;
-    float shape = slot_shape(L, Xbest);
+    float shape = slot_shape(L, Xbest, ies_pixel);
     const int G = LIM_REUSE_SLOT_GRID;
     vec2 lo = (vec2(tile) - 0.5) * float(u_big_px);
     float step_px = 2.0 * float(u_big_px) / float(G);
@@ -62,7 +98,7 @@ void main() {
             float z = texelFetch(g_depth, ivec2(q), 0).r;
             if (z <= 0.0) continue;
             vec3 X = world_pos_from_depth(q, z);
-            float sh = slot_shape(L, X);
+            float sh = slot_shape(L, X, ies_pixel);
             if (sh > shape) {
                 shape = sh;
                 Xbest = X;
@@ -76,4 +112,6 @@ void main() {
     float he = L.area.z == AREA_POINT ? 0.0 : light_half_extent(L);
     o_pos = L.pos_range;
     o_shape = vec4(I, he, Wj, float(li));
+    o_cone = slot_cone(L);
+    if (ies_pixel) o_ies = vec4(L.axis_emit.xyz, L.tint_ies.w);
 }

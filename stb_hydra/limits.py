@@ -483,6 +483,18 @@ STB_BIGTILE_SHAPE_FLOOR = 0.1
 #: wherever the light may reach a pixel between the points (unbiased).
 STB_REUSE_SLOT_GRID = 4
 STB_REUSE_SLOT_SHAPE_FLOOR = 0.01
+#: The cone of a slot's light is not in that maximum: each pixel applies it (cos space,
+#: a third slot texel). Its cutoff is widened by this fraction (relative, of the cutoff
+#: angle) so rounding never zeroes the target where the shading is still > 0, and its
+#: soft band (cos(smooth start) - cos(cutoff), unitless) is at least the second value
+#: (hard cones: a target that falls to 0 over that band just inside the edge).
+STB_REUSE_SLOT_CONE_MARGIN = 1e-3
+STB_REUSE_SLOT_CONE_MIN_DCOS = 1e-5
+#: ... and so is an IES table (a light without angleScale): each pixel looks up the
+#: table's maximum over phi at its cos off the axis, from a per-layer table of this many
+#: bins uniform in cos (each the maximum over its neighbours' span: a linear lookup
+#: never falls below the table; ``gl_delegate.ies_cos_rowmax``).
+STB_REUSE_IES_COS_BINS = 256
 
 # --- STB interleaving patterns --------------------------------------------------------
 

@@ -10,6 +10,11 @@ loop's, net of the frame without local lights: (method - sun) / (bare - sun). Ru
 with ``LP_NUM_THREADS=1`` for the figures of docs/PERFORMANCE.md.
 
     LP_NUM_THREADS=1 python tools/frame_cpu.py /tmp/tap500.usda --methods sun,bare,reference
+
+Scenes may also be ``stb bench``'s generators (``gen:lights:500``). ``--variant
+LABEL=METHOD[:K=V...]`` adds a method with options as one more interleaved row (issue 31:
+``--methods stb --variant reuse=stb:reuse=on:N=4:reuse_k=0``); ``--shadow-budget``
+renders with ``stb bench``'s real-time shadow budget instead of the offline one.
 """
 
 from __future__ import annotations
@@ -26,21 +31,40 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--methods", default="sun,bare,reference,tiled,clustered")
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--size", default="160x90", help="WxH (default 160x90)")
+    ap.add_argument("--variant", action="append", default=[], metavar="LABEL=METHOD[:K=V...]")
+    ap.add_argument("--shadow-budget", action="store_true", help="stb bench's texel budget")
     a = ap.parse_args(argv)
-    from pxr import Usd
-
+    from stb_hydra import limits
+    from stb_hydra.apps.bench import parse_scene
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
     from stb_hydra.renderer.gl import get_context
 
     w, h = (int(v) for v in a.size.lower().split("x"))
-    methods = a.methods.split(",")
+    specs: dict[str, tuple[str, dict[str, str]]] = {m: (m, {}) for m in a.methods.split(",") if m}
+    for v in a.variant:
+        label, _, rest = v.partition("=")
+        method, *kvs = rest.split(":")
+        specs[label] = (method, dict(kv.split("=", 1) for kv in kvs))
+    methods = list(specs)
+    budget = limits.SHADOW_UPDATE_BUDGET_TEXELS_DEFAULT if a.shadow_budget else None
     ctx = get_context()
     out: dict[str, dict[str, float]] = {}
-    for scene in a.scenes:
-        stage = Usd.Stage.Open(scene)
+    for case in [c for sc in a.scenes for c in parse_scene(sc)]:
+        scene = case.label
+        stage = case.build()
         engs = {
-            m: Engine(stage, RenderSettings(width=w, height=h, lighting=m), ctx=ctx)
+            m: Engine(
+                stage,
+                RenderSettings(
+                    width=w,
+                    height=h,
+                    lighting=specs[m][0],
+                    method_options=dict(specs[m][1]),
+                    shadow_budget=budget,
+                ),
+                ctx=ctx,
+            )
             for m in methods
         }
         cpu: dict[str, list[float]] = {m: [] for m in methods}
@@ -66,7 +90,9 @@ def main(argv: list[str] | None = None) -> int:
             for m, v in med.items()
             if bare is not None and m not in ("sun", "bare")
         )
-        print(f"{scene}: CPU ms/frame {line}  net of sun: {net}", flush=True)
+        first = methods[0]
+        rel = " ".join(f"{m}/{first}={v / med[first]:.3f}" for m, v in med.items() if m != first)
+        print(f"{scene}: CPU ms/frame {line}  net of sun: {net}  {rel}", flush=True)
     print(json.dumps(out))
     return 0
 

@@ -48,15 +48,23 @@ float reuse_cheap_target(uint li, Surface s, uint group) {
 #endif
 
 #ifdef STB_REUSE_SLOT_TARGET
-// -o reuse_target=tile: the pixel's part of the initial target from the slot's two
-// texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent): the
-// point form of common/stb_target.glsl (area horizon, Lambert + Blinn-Phong, + eps x
-// the facing illuminance x BRDF) with the shaping taken towards the tile, not this
-// pixel. > 0 wherever the light is in range (the shaping is floored): unbiased.
+// -o reuse_target=tile: the pixel's part of the initial target from the slot's four
+// texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent, the
+// cone in cos space, the IES axis + layer): the point form of common/stb_target.glsl
+// (area horizon, Lambert + Blinn-Phong, + eps x the facing illuminance x BRDF) with the
+// emission shaping taken towards the tile, the cone and the IES table (its maximum over
+// phi, gl_delegate.ies_cos_rowmax) at this pixel. > 0 wherever the light is in range,
+// inside its cone and its table is > 0 (the tile's shaping is floored; the cone's
+// cutoff is widened a hair; the table's lookup never falls below it): unbiased.
 uniform sampler2D u_slot_pos;    // rgba32f: light position (m), range (m)
 uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt, index
+uniform sampler2D u_slot_cone;   // rgba32f: axis / dc, (cos cutoff + dc) / dc (0: no cone)
+uniform sampler2D u_slot_ies;    // rgba32f: axis, IES layer (-1: none here)
+#ifdef HAS_IES
+uniform sampler2DArray u_ies_cos;  // per layer: the table's max over phi against cos off the axis
+#endif
 
-float reuse_slot_target(vec4 pr, vec4 sh, Surface s, uint group) {
+float reuse_slot_target(vec4 pr, vec4 sh, vec4 cone, vec4 ies, Surface s, uint group) {
     if (sh.w < 0.0) return 0.0;
 #ifdef HAS_LINKS
     if (!light_linked(uint(sh.w), group)) return 0.0;
@@ -66,7 +74,15 @@ float reuse_slot_target(vec4 pr, vec4 sh, Surface s, uint group) {
     if (!(dist < pr.w)) return 0.0;
     vec3 Ldir = d / max(dist, 1e-12);
     float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
-    float Ev = sh.x * range_window(dist, pr.w) / (r * r);
+    // the cone (light_shape_scalar_m's smoothstep, in cos instead of angle): no branch
+    float tc = clamp(cone.w + dot(Ldir, cone.xyz), 0.0, 1.0);  // dir leaving = -Ldir
+    float Ev = sh.x * range_window(dist, pr.w) * (1.0 - tc * tc * (3.0 - 2.0 * tc)) / (r * r);
+#ifdef HAS_IES
+    if (ies.w >= 0.0) {  // the IES table's maximum over phi at this cos (>= the table)
+        float u = (0.5 - 0.5 * dot(Ldir, ies.xyz)) * float(LIM_REUSE_IES_COS_BINS - 1) + 0.5;
+        Ev *= texture(u_ies_cos, vec3(u / float(LIM_REUSE_IES_COS_BINS), 0.5, ies.w)).r;
+    }
+#endif
     float NoL = dot(s.N, Ldir);
     // area horizon (light_target_irradiance): the sphere of the light's half extent
     float e = clamp(sh.y / r, 1e-4, 1.0);
@@ -85,7 +101,8 @@ float reuse_slot_target(vec4 pr, vec4 sh, Surface s, uint group) {
 
 // The slot target of the big tile bt's slot (texel offset within the tile's block).
 float reuse_slot_target_at(ivec2 texel, Surface s, uint group) {
-    return reuse_slot_target(texelFetch(u_slot_pos, texel, 0), texelFetch(u_slot_shape, texel, 0), s, group);
+    return reuse_slot_target(texelFetch(u_slot_pos, texel, 0), texelFetch(u_slot_shape, texel, 0),
+                             texelFetch(u_slot_cone, texel, 0), texelFetch(u_slot_ies, texel, 0), s, group);
 }
 #endif
 
@@ -191,7 +208,8 @@ Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, o
         uint li = uint(sh.w);
         float Wj = sh.z;
         count += 1.0;
-        float p = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, s, group);
+        float p = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_cone, texel, 0),
+                                    texelFetch(u_slot_ies, texel, 0), s, group);
         if (u_shadow_floor < 1.0 && p > 0.0) {
             float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
             p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);

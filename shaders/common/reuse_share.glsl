@@ -68,7 +68,8 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
             vec4 sh = texelFetch(u_slot_shape, texel, 0);
             if (sh.w >= 0.0) {
                 yi[k] = uint(sh.w);
-                P[k] = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, s, group);
+                P[k] = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_cone, texel, 0),
+                                         texelFetch(u_slot_ies, texel, 0), s, group);
                 if (u_shadow_floor < 1.0 && P[k] > 0.0) {
                     float v = luminance(local_shadow_hard(lights[yi[k]], s.P, s.N));
                     P[k] *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);

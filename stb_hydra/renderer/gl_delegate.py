@@ -113,6 +113,9 @@ class GLRenderDelegate(RenderDelegate):
         #: Some batch's material has a clearcoat lobe (the G-buffer's g_coat exists).
         self.has_clearcoat = False
         self.ies_texture: moderngl.TextureArray | None = None
+        #: Per IES layer, the table's maximum over phi against cos off the axis
+        #: (``ies_cos_rowmax``): the per-pixel IES of ``-o reuse_target=tile``.
+        self.ies_cos_texture: moderngl.TextureArray | None = None
         #: The textured dome's map and uniforms (issue 37).
         self.dome_env = DomeEnvironment(ctx)
         self._ies_version = -1
@@ -555,6 +558,9 @@ class GLRenderDelegate(RenderDelegate):
         if self.ies_texture is not None:
             self.ies_texture.release()
             self.ies_texture = None
+        if self.ies_cos_texture is not None:
+            self.ies_cos_texture.release()
+            self.ies_cos_texture = None
         self.ies_layer_count = n
         self._ies_version = self.ies.version
         if n == 0:
@@ -578,6 +584,12 @@ class GLRenderDelegate(RenderDelegate):
         tex.repeat_x = True
         tex.repeat_y = False
         self.ies_texture = tex
+        cos_max = ies_cos_rowmax(data, limits.STB_REUSE_IES_COS_BINS)
+        ct = self.ctx.texture_array((cos_max.shape[1], 1, n), 1, cos_max.tobytes(), dtype="f4")
+        ct.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        ct.repeat_x = False
+        ct.repeat_y = False
+        self.ies_cos_texture = ct
 
     @property
     def has_ies(self) -> bool:
@@ -664,6 +676,8 @@ class GLRenderDelegate(RenderDelegate):
             self.light_ssbo.release()
         if self.ies_texture is not None:
             self.ies_texture.release()
+        if self.ies_cos_texture is not None:
+            self.ies_cos_texture.release()
         if self.rect_texture_array is not None:
             self.rect_texture_array.release()
         self.dome_env.release()
@@ -688,3 +702,24 @@ def _material_vertices(mesh: prims.MeshPrim) -> np.ndarray | None:
     if mesh.attrs is not None:
         out[:n, 6:10] = mesh.attrs[:n]
     return out
+
+
+def ies_cos_rowmax(tables: np.ndarray, bins: int) -> np.ndarray:
+    """(layers, bins) float32 from (layers, T, P) normalised IES tables (rows theta 0..pi
+    off the light's -Z axis, both ends exact; shaders/common/ies.glsl): bin j at cos
+    c_j = -1 + 2 j / (bins - 1) holds the maximum over phi of every row that the theta
+    span of [c_(j-1), c_(j+1)] touches (the rows either side of it included), so a
+    linear lookup at any cos is >= the table's bilinear value in every direction with
+    that cos (unitless, the table's units)."""
+    n, t_rows, _ = tables.shape
+    rows = tables.max(axis=2)
+    c = np.linspace(-1.0, 1.0, bins)
+    lo_c = np.clip(c + 2.0 / (bins - 1), -1.0, 1.0)  # cos of the span's low theta
+    hi_c = np.clip(c - 2.0 / (bins - 1), -1.0, 1.0)
+    scale = (t_rows - 1) / np.pi
+    r0 = np.clip(np.floor(np.arccos(lo_c) * scale).astype(int) - 1, 0, t_rows - 1)
+    r1 = np.clip(np.ceil(np.arccos(hi_c) * scale).astype(int) + 1, 0, t_rows - 1)
+    out = np.empty((n, bins), dtype=np.float32)
+    for j in range(bins):
+        out[:, j] = rows[:, r0[j] : r1[j] + 1].max(axis=1)
+    return np.ascontiguousarray(out)

@@ -309,6 +309,10 @@ class LightingMethod:
             d.ies_texture.use(unit)
             cast(moderngl.Uniform, prog["u_ies"]).value = unit
             unit += 1
+        if d is not None and "u_ies_cos" in prog and d.ies_cos_texture is not None:
+            d.ies_cos_texture.use(unit)
+            cast(moderngl.Uniform, prog["u_ies_cos"]).value = unit
+            unit += 1
         slots = frame.get(ShadowSlots)
         if slots.records is not None:
             slots.records.bind_to_storage_buffer(SSBO_SHADOW_MAPS)

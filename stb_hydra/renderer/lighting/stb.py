@@ -212,8 +212,8 @@ OPTIONS = Schema(
         choices=("full", "cheap", "tile"),
         doc="reuse: the initial resampling's per-pixel target with reuse_candidates > 0: "
         "full (area, cone, IES) or cheap (point light from two of its ten vec4s) or tile "
-        "(the light's shaping evaluated once per big-tile slot towards the tile, the "
-        "pixel's part from two texels)",
+        "(the light's emission shaping evaluated once per big-tile slot towards the tile; "
+        "distance, cone and IES table per pixel from four texels)",
     ),
     Opt(
         "reuse_res",

@@ -55,7 +55,8 @@ CURRENT = "stb_reuse_cur"
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
 #: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
-SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape")
+SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_cone", "stb_reuse_slot_ies")
+SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_cone", "u_slot_ies")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
 MIS_MODES = {"count": 0, "balance": 1, "pairwise": 2}
 
@@ -242,7 +243,7 @@ class ReuseStage:
             ("u_motion", bufs.textures["g_motion"]),
             ("u_prev_res", h_src),
             ("u_prev_geo", g_src),
-            *zip(("u_slot_pos", "u_slot_shape"), slots),
+            *zip(SLOT_UNIFORMS, slots),
         ):
             unit = method._bind(frame, prog, unit, name, tex)
         prev = self._prev_view if self._prev_view is not None else frame.view
@@ -287,7 +288,7 @@ class ReuseStage:
             set_uniform(prog, "u_stochastic_bilinear", 1 if o["stochastic_bilinear"] else 0)
             set_uniform(prog, "u_shadow_floor", float(o["reuse_shadow_floor"]))
             unit = method._bind(frame, prog, unit, "u_bigtile", big_tile)
-            for name, tex in zip(("u_slot_pos", "u_slot_shape"), slots, strict=False):
+            for name, tex in zip(SLOT_UNIFORMS, slots, strict=False):
                 unit = method._bind(frame, prog, unit, name, tex)
         set_uniform(prog, "u_k", int(o["reuse_k"]))
         set_uniform(prog, "u_radius", float(o["reuse_radius"]))
@@ -304,7 +305,7 @@ class ReuseStage:
         self, method: Any, frame: FrameContext, defines: dict[str, Any], big: moderngl.Texture
     ) -> tuple[moderngl.Texture, ...]:
         """``stb_reuse_slots.frag``: each big-tile slot's half of the initial target
-        (``-o reuse_target=tile``), two rgba32f textures in the big tiles' layout."""
+        (``-o reuse_target=tile``), four rgba32f textures in the big tiles' layout."""
         bufs = frame.buffers
         texs = tuple(bufs.texture(n, 4, "f4", size=big.size) for n in SLOTS)
         prog = program(frame, "stb_reuse_slots.frag", defines)
