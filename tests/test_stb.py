@@ -184,17 +184,20 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
 
 
 @pytest.mark.parametrize(
-    "select,bigtile",
+    "select,bigtile,frames",
     [
-        ("all", "stream"),
-        ("quad", "stream"),
-        ("pixel", "stream"),
-        ("ris", "stream"),
-        ("all", "clusters"),
+        # The anchor: 512 frames, so its image mean resolves a 1.3 % global bias of the
+        # small tile's streams (tools/mutation_check.py stb_stream_accept: mean 0.987 at
+        # 512 frames; at 256 the noise hid it).
+        ("all", "stream", 512),
+        ("quad", "stream", 256),
+        ("pixel", "stream", 256),
+        ("ris", "stream", 256),
+        ("all", "clusters", 256),
     ],
 )
 @pytest.mark.slow
-def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile):
+def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile, frames):
     """Weight cap off: the mean of M STB frames -> reference, error ~ 1/M; with all N
     samples per pixel, with quad/pixel selection (one of the N per quad/pixel) and with
     per-pixel resampling of the N (ris: its target, an unshadowed approximation times
@@ -214,19 +217,19 @@ def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile):
         select=select,
         bigtile=bigtile,
     )
-    # 256 frames (tests/convergence.py): the split-half squared bias within a third of
-    # the relMSE budget a 512-frame mean had (that test allowed ~tol less its noise:
-    # 0.9e-3 for all N, 3.5e-3 for quad/pixel), the noise within the same budget (2 tol
-    # at half the frames) and falling as 1/M, the image mean within 1 % (1.5 % with one
-    # sample per quad/pixel: their mean spreads 0.6 % at 256 frames, 0.45 % at 512).
+    # From ``frames`` frames (tests/convergence.py): the split-half squared bias within a
+    # third of the relMSE budget ``tol`` a 512-frame mean had (that test allowed ~tol
+    # less its noise: 0.9e-3 for all N, 3.5e-3 for quad/pixel), the noise within the
+    # same budget scaled to the frames and falling as 1/M, the image mean within 1 %
+    # (1.5 % with one sample per quad/pixel: their mean spreads 0.6 % at 256 frames).
     imgs = stb_hydra.render_progressive(
-        stage, snapshot_counts(256), width=w, height=h, lighting="stb", **opts
+        stage, snapshot_counts(frames), width=w, height=h, lighting="stb", **opts
     )
     c = convergence(imgs, ref)
     tol = 2e-3 if select == "all" else 8e-3
     assert c.finite, c
     assert c.bias2 <= tol / 3.0, c
-    assert c.relmse <= 2.0 * tol, c
+    assert c.relmse <= tol * 512 / frames, c
     assert c.relmse < c.relmse_early / 3.0, c  # 8x the frames: error falls roughly as 1/M
     assert abs(c.mean_ratio - 1.0) < (0.01 if select in ("all", "ris") else 0.015), c
 
