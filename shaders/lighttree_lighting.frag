@@ -74,34 +74,41 @@ void main() {
                 // narrow and other sphere lights, the rest, each part in a loop holding
                 // only its model's code (renderer/light_buffer.by_light_model), compiled
                 // only for the models the scene has (LOOP_*, lighting/base.light_loops).
+                // SKIP_UNREACHED (lighting_direct.frag): every loop steps over the lights
+                // out of the pixel's reach (or link group) in an inner loop of its own,
+                // which a SIMD group leaves once every lane has (an `if (...) continue`
+                // ran the body for the group whenever one lane took it); a light past
+                // the loop's model stepped over is out of reach for the later loops too.
                 uint k = 0u;
 #ifdef LOOP_POINT
                 for (; k < count; ++k) {
+                    while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+                    if (k >= count) break;
                     uint i = tree_lights[first + k];
                     if (i >= u_point_lights) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_point_at(i, s);
                 }
 #endif
 #ifdef LOOP_SPHERE_NARROW
                 for (; k < count; ++k) {
+                    while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+                    if (k >= count) break;
                     uint i = tree_lights[first + k];
                     if (i >= u_sphere_end) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_sphere_narrow(lights[i], s);
                 }
 #endif
 #ifdef LOOP_SPHERE_WIDE
                 for (; k < count; ++k) {
+                    while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+                    if (k >= count) break;
                     uint i = tree_lights[first + k];
                     if (i >= u_wide_sphere_end) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
                     c += light_radiance_sphere_wide(lights[i], s);
                 }
 #endif
 #ifdef LOOP_GENERAL
                 for (; k < count; ++k) {
-                    // SKIP_UNREACHED (lighting_direct.frag, tiled_lighting.frag)
                     while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
                     if (k >= count) break;
                     uint i = tree_lights[first + k];
