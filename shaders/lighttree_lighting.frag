@@ -64,55 +64,69 @@ void main() {
     int cell = (depth_slice(depth) * u_grid.y + tile.y) * u_grid.x + tile.x;
     uvec2 h = cell_header[cell];
     uint ni = 0u;
-    while (ni < h.y) {
+    for (;;) {
+        // SKIP_UNREACHED at the node level: the walk steps to the pixel's next entered
+        // leaf in an inner loop of its own (an entered inner node: the next node; a
+        // missed node: past its subtree), so a SIMD group whose pixels sit in different
+        // leaves shades them together once every lane has found its own, instead of
+        // running each leaf's loops for the whole group in turn (`if (entered)` bodies).
+        // Each pixel visits the same leaves in the same order as before: same sum.
+        while (ni < h.y) {
+            uint b = nodes[h.x + ni].bits;
+            bool entered = depth >= nodes[h.x + ni].min_depth && depth <= nodes[h.x + ni].max_depth;
+            if (entered && (b & 1u) != 0u) break;
+            ni += entered ? 1u : b >> 17;
+        }
+        if (ni >= h.y) break;
         Node nd = nodes[h.x + ni];
-        if (depth >= nd.min_depth && depth <= nd.max_depth) {
-            if ((nd.bits & 1u) != 0u) {
-                uint count = (nd.bits >> 1) & 0xFFFFu;
-                uint first = nd.first_light;
-                // A leaf's lights ascend (light_tree_build.build_cells): point lights,
-                // narrow and other sphere lights, the rest, each part in a loop holding
-                // only its model's code (renderer/light_buffer.by_light_model), compiled
-                // only for the models the scene has (LOOP_*, lighting/base.light_loops).
-                uint k = 0u;
+        uint count = (nd.bits >> 1) & 0xFFFFu;
+        uint first = nd.first_light;
+        // A leaf's lights ascend (light_tree_build.build_cells): point lights,
+        // narrow and other sphere lights, the rest, each part in a loop holding
+        // only its model's code (renderer/light_buffer.by_light_model), compiled
+        // only for the models the scene has (LOOP_*, lighting/base.light_loops).
+        // SKIP_UNREACHED (lighting_direct.frag): every loop steps over the lights
+        // out of the pixel's reach (or link group) in an inner loop of its own,
+        // which a SIMD group leaves once every lane has (an `if (...) continue`
+        // ran the body for the group whenever one lane took it); a light past
+        // the loop's model stepped over is out of reach for the later loops too.
+        uint k = 0u;
 #ifdef LOOP_POINT
-                for (; k < count; ++k) {
-                    uint i = tree_lights[first + k];
-                    if (i >= u_point_lights) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
-                    c += light_radiance_point_at(i, s);
-                }
+        for (; k < count; ++k) {
+            while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+            if (k >= count) break;
+            uint i = tree_lights[first + k];
+            if (i >= u_point_lights) break;
+            c += light_radiance_point_at(i, s);
+        }
 #endif
 #ifdef LOOP_SPHERE_NARROW
-                for (; k < count; ++k) {
-                    uint i = tree_lights[first + k];
-                    if (i >= u_sphere_end) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
-                    c += light_radiance_sphere_narrow(lights[i], s);
-                }
+        for (; k < count; ++k) {
+            while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+            if (k >= count) break;
+            uint i = tree_lights[first + k];
+            if (i >= u_sphere_end) break;
+            c += light_radiance_sphere_narrow(lights[i], s);
+        }
 #endif
 #ifdef LOOP_SPHERE_WIDE
-                for (; k < count; ++k) {
-                    uint i = tree_lights[first + k];
-                    if (i >= u_wide_sphere_end) break;
-                    if (!tree_light_reaches(i, s.P, group)) continue;
-                    c += light_radiance_sphere_wide(lights[i], s);
-                }
+        for (; k < count; ++k) {
+            while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+            if (k >= count) break;
+            uint i = tree_lights[first + k];
+            if (i >= u_wide_sphere_end) break;
+            c += light_radiance_sphere_wide(lights[i], s);
+        }
 #endif
 #ifdef LOOP_GENERAL
-                for (; k < count; ++k) {
-                    // SKIP_UNREACHED (lighting_direct.frag, tiled_lighting.frag)
-                    while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
-                    if (k >= count) break;
-                    uint i = tree_lights[first + k];
-                    c += light_radiance(lights[i], s);
-                }
-#endif
-            }
-            ni += 1u;
-        } else {
-            ni += nd.bits >> 17;
+        for (; k < count; ++k) {
+            while (k < count && !tree_light_reaches(tree_lights[first + k], s.P, group)) ++k;
+            if (k >= count) break;
+            uint i = tree_lights[first + k];
+            c += light_radiance(lights[i], s);
         }
+#endif
+        ni += 1u;
     }
     c += emission;
     write_lighting(px, s, c);

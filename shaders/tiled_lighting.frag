@@ -58,6 +58,8 @@ void main() {
     uint k = 0u;
 #ifdef LOOP_POINT
     for (; k < h.y; ++k) {
+        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_point_lights) break;
 #ifdef HAS_LINKS
@@ -68,23 +70,25 @@ void main() {
 #endif
 #ifdef LOOP_SPHERE_NARROW
     for (; k < h.y; ++k) {  // then the narrow sphere lights (up to u_sphere_end)
+        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_sphere_end) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;
         c += light_radiance_sphere_narrow(lights[i], s);
     }
 #endif
 #ifdef LOOP_SPHERE_WIDE
     for (; k < h.y; ++k) {  // the other sphere lights (up to u_wide_sphere_end)
+        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_wide_sphere_end) break;
 #ifdef HAS_LINKS
         if (!light_linked(i, group)) continue;
 #endif
-        if (!light_reaches(i, s.P)) continue;
         c += light_radiance_sphere_wide(lights[i], s);
     }
 #endif
@@ -92,8 +96,9 @@ void main() {
     for (; k < h.y; ++k) {
         // SKIP_UNREACHED (lighting_direct.frag): entries out of the pixel's reach are
         // stepped over in a loop (a SIMD group runs an `if` body whenever any lane takes
-        // it, but leaves a loop once every lane has). Only this loop: the same rewrite of
-        // the sphere loops changed images (not understood; issue 34 notes).
+        // it, but leaves a loop once every lane has); so in every loop here. An entry
+        // past this loop's model may be stepped over too: it is out of reach, and
+        // every later loop would skip it as well.
         while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;
         if (k >= h.y) break;
         uint i = cell_lights[h.x + k];

@@ -154,9 +154,17 @@ def test_every_light_model_loop_equals_reference(gl_ctx, name):
     finally:
         eng.release()
     assert ref.max() > 0
-    for method, opts in [("tiled", {"tile_cap": None}), ("clustered", {}), ("lighttree", {})]:
+    # the tree-only light tree with 2-light leaves: pixels walk several leaves, each
+    # through every model's loop (lighttree_lighting.frag's leaf walk, issue 34)
+    tree_only = {"mode": "tree", "slices": 0, "leaf": 2}
+    for method, opts in [
+        ("tiled", {"tile_cap": None}),
+        ("clustered", {}),
+        ("lighttree", {}),
+        ("lighttree", tree_only),
+    ]:
         img = render(stage, method, **opts)[0]
-        assert relmse(img, ref) <= TOL, method
+        assert relmse(img, ref) <= TOL, (method, opts)
         if method != "lighttree":
             np.testing.assert_array_equal(img, ref)
 
