@@ -42,7 +42,7 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
     // This pixel's (light index, resampling weight sum p(y) W) and the quad's others'.
     float wsum = has ? r.W * r.p : 0.0;
 #ifdef STB_REUSE_SLOT_TARGET
-    // the pick's slot texel (its light index is in the slot's data)
+    // the pick's slot texel (its light index: the big-tile reservoir at that texel)
     float yf = has ? float(reuse_sel_texel.y * 4096 + reuse_sel_texel.x) : -1.0;
 #else
     float yf = has ? float(r.y) : -1.0;
