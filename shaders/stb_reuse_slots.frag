@@ -7,21 +7,23 @@
 // tile (LIM_REUSE_SLOT_GRID^2, over the tile +- half a tile) and the tile's central
 // segment's point nearest the light, floored at LIM_REUSE_SLOT_SHAPE_FLOOR so the
 // target stays > 0 wherever the light may reach a pixel (unbiased). The cone and the
-// IES table are left to the pixel, in cos space from two more texels (o_cone, o_ies: no
-// acos; a narrow cone or IES lobe between the grid's points would otherwise sit at the
-// floor, and its pixels' picks carry ~100x weights: fireflies). A light with an IES
-// angleScale keeps its table in the grid's maximum (o_ies.w = -1). The pixel's part
+// IES table are left to the pixel, in cos space from a third texel (o_axis: no acos; a
+// narrow cone or IES lobe between the grid's points would otherwise sit at the floor,
+// and its pixels' picks carry ~100x weights: fireflies). A light with an IES
+// angleScale keeps its table in the grid's maximum (o_shape.w = -1). The pixel's part
 // (common/reuse_initial.glsl: reuse_slot_target) is then distance, range window, cone,
-// IES, horizon and BRDF, from these four texels and no light record.
+// IES, horizon and BRDF, from these three texels and no light record (the light's
+// index is read once per pixel, for its pick, from the big-tile reservoir itself).
 //   o_pos:   light position (m, world), influence range (m)
 //   o_shape: x luminous intensity x shaping (no cone) towards the tile (cd, luminance),
 //            y half extent (m; 0: a point light), z W_bt (the slot's contribution
-//            weight), w light index in the FoV list (float; -1: empty slot)
-//   o_cone:  the cone's falloff as t = clamp(w - dot(dir, xyz), 0, 1), dir the unit
-//            direction leaving the light, shape 1 - t^2 (3 - 2 t): xyz the emission
+//            weight; 0: empty slot), w the IES layer looked up per pixel (-1: none)
+//   o_axis:  the cone's falloff as t = clamp(w + dot(Ldir, xyz), 0, 1), Ldir the unit
+//            direction towards the light, shape 1 - t^2 (3 - 2 t): xyz the emission
 //            axis / dc, w (cos cutoff + dc) / dc, dc = cos(smooth start) - cos(cutoff)
-//            (>= LIM_REUSE_SLOT_CONE_MIN_DCOS); 0 (shape 1) for lights without a cone
-//   o_ies:   xyz the emission axis (unit), w the IES layer (-1: none, or in o_shape.x)
+//            (>= LIM_REUSE_SLOT_CONE_MIN_DCOS); a light without a cone: xyz its unit
+//            axis (0 without an IES layer either), w = -2 (t = 0, shape 1). The IES
+//            lookup's axis is normalize(xyz).
 #include "common/frame.glsl"
 #include "common/gbuffer.glsl"
 #include "common/packing.glsl"
@@ -33,11 +35,10 @@ uniform ivec2 u_block;         // slot block per big tile (K = x * y)
 
 layout(location = 0) out vec4 o_pos;
 layout(location = 1) out vec4 o_shape;
-layout(location = 2) out vec4 o_cone;
-layout(location = 3) out vec4 o_ies;
+layout(location = 2) out vec4 o_axis;
 
 // IES (unless per pixel: ies_pixel) x emission model of L towards the point X (leaving
-// the light); the cone is the pixel's (o_cone): cone.y past CONE_CUTOFF_TEST_RAD skips it.
+// the light); the cone is the pixel's (o_axis): cone.y past CONE_CUTOFF_TEST_RAD skips it.
 float slot_shape(Light L, vec3 X, bool ies_pixel) {
     vec3 d = X - L.pos_range.xyz;
     vec3 w = d / max(length(d), 1e-12);
@@ -47,8 +48,9 @@ float slot_shape(Light L, vec3 X, bool ies_pixel) {
          * emission_shape(L, w);
 }
 
-// o_cone for L (see the header): the cone light_shape_scalar_m applies, in cos space.
-vec4 slot_cone(Light L) {
+// o_axis for L (see the header): the cone light_shape_scalar_m applies, in cos space,
+// and the IES lookup's axis.
+vec4 slot_axis(Light L) {
 #ifdef HAS_CONES
     if (L.cone.y < CONE_CUTOFF_TEST_RAD) {
         // the cutoff a hair wide so that rounding never zeroes the target where the
@@ -59,7 +61,7 @@ vec4 slot_cone(Light L) {
         return vec4(L.axis_emit.xyz / dc, (c_cut + dc) / dc);
     }
 #endif
-    return vec4(0.0);
+    return vec4(L.axis_emit.xyz, -2.0);  // |dot| <= 1: t = 0
 }
 
 void main() {
@@ -69,8 +71,7 @@ void main() {
     float Wj = sample_weight(smp);
     o_pos = vec4(0.0);
     o_shape = vec4(0.0, 0.0, 0.0, -1.0);
-    o_cone = vec4(0.0);
-    o_ies = vec4(0.0, 0.0, 0.0, -1.0);
+    o_axis = vec4(0.0, 0.0, 0.0, -2.0);
     if (li == LIM_EMPTY_LIGHT_INDEX || li >= u_counts.x || !(Wj > 0.0)) return;
     Light L = lights[li];
     ivec2 tile = p / u_block;
@@ -111,7 +112,6 @@ void main() {
     float I = luminance(L.intensity.rgb * light_tint_rgb(L, w)) * shape;
     float he = L.area.z == AREA_POINT ? 0.0 : light_half_extent(L);
     o_pos = L.pos_range;
-    o_shape = vec4(I, he, Wj, float(li));
-    o_cone = slot_cone(L);
-    if (ies_pixel) o_ies = vec4(L.axis_emit.xyz, L.tint_ies.w);
+    o_shape = vec4(I, he, Wj, ies_pixel ? L.tint_ies.w : -1.0);
+    o_axis = slot_axis(L);
 }

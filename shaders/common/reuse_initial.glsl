@@ -48,26 +48,32 @@ float reuse_cheap_target(uint li, Surface s, uint group) {
 #endif
 
 #ifdef STB_REUSE_SLOT_TARGET
-// -o reuse_target=tile: the pixel's part of the initial target from the slot's four
-// texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent, the
-// cone in cos space, the IES axis + layer): the point form of common/stb_target.glsl
-// (area horizon, Lambert + Blinn-Phong, + eps x the facing illuminance x BRDF) with the
-// emission shaping taken towards the tile, the cone and the IES table (its maximum over
-// phi, gl_delegate.ies_cos_rowmax) at this pixel. > 0 wherever the light is in range,
-// inside its cone and its table is > 0 (the tile's shaping is floored; the cone's
-// cutoff is widened a hair; the table's lookup never falls below it): unbiased.
+// -o reuse_target=tile: the pixel's part of the initial target from the slot's three
+// texels (stb_reuse_slots.frag: position + range, shaped intensity + half extent + W_bt
+// + IES layer, the cone in cos space + the emission axis): the point form of
+// common/stb_target.glsl (area horizon, Lambert + Blinn-Phong, + eps x the facing
+// illuminance x BRDF) with the emission shaping taken towards the tile, the cone and
+// the IES table (its maximum over phi, gl_delegate.ies_cos_rowmax) at this pixel. > 0
+// wherever the light is in range, inside its cone and its table is > 0 (the tile's
+// shaping is floored; the cone's cutoff is widened a hair; the table's lookup never
+// falls below it): unbiased. The slot's light index is not read per candidate (one
+// texel fewer): the pick's comes from the big-tile reservoir (reuse_slot_light).
 uniform sampler2D u_slot_pos;    // rgba32f: light position (m), range (m)
-uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt, index
-uniform sampler2D u_slot_cone;   // rgba32f: axis / dc, (cos cutoff + dc) / dc (0: no cone)
-uniform sampler2D u_slot_ies;    // rgba32f: axis, IES layer (-1: none here)
+uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt (0: empty), IES layer (-1: none here)
+uniform sampler2D u_slot_axis;   // rgba32f: axis / dc, (cos cutoff + dc) / dc (no cone: unit axis, -2)
 #ifdef HAS_IES
 uniform sampler2DArray u_ies_cos;  // per layer: the table's max over phi against cos off the axis
 #endif
 
-float reuse_slot_target(vec4 pr, vec4 sh, vec4 cone, vec4 ies, Surface s, uint group) {
-    if (sh.w < 0.0) return 0.0;
+// The light index of the big-tile slot at texel (the FoV list's).
+uint reuse_slot_light(ivec2 texel) {
+    return sample_index(texelFetch(u_bigtile, texel, 0).r);
+}
+
+float reuse_slot_target(vec4 pr, vec4 sh, vec4 ax, ivec2 texel, Surface s, uint group) {
+    if (!(sh.z > 0.0)) return 0.0;
 #ifdef HAS_LINKS
-    if (!light_linked(uint(sh.w), group)) return 0.0;
+    if (!light_linked(reuse_slot_light(texel), group)) return 0.0;
 #endif
     vec3 d = pr.xyz - s.P;
     float dist = length(d);
@@ -75,12 +81,16 @@ float reuse_slot_target(vec4 pr, vec4 sh, vec4 cone, vec4 ies, Surface s, uint g
     vec3 Ldir = d / max(dist, 1e-12);
     float r = max(dist, LIM_MIN_LIGHT_DISTANCE);
     // the cone (light_shape_scalar_m's smoothstep, in cos instead of angle): no branch
-    float tc = clamp(cone.w + dot(Ldir, cone.xyz), 0.0, 1.0);  // dir leaving = -Ldir
+    float cax = dot(Ldir, ax.xyz);
+    float tc = clamp(ax.w + cax, 0.0, 1.0);  // dir leaving = -Ldir
     float Ev = sh.x * range_window(dist, pr.w) * (1.0 - tc * tc * (3.0 - 2.0 * tc)) / (r * r);
 #ifdef HAS_IES
-    if (ies.w >= 0.0) {  // the IES table's maximum over phi at this cos (>= the table)
-        float u = (0.5 - 0.5 * dot(Ldir, ies.xyz)) * float(LIM_REUSE_IES_COS_BINS - 1) + 0.5;
-        Ev *= texture(u_ies_cos, vec3(u / float(LIM_REUSE_IES_COS_BINS), 0.5, ies.w)).r;
+    if (sh.w >= 0.0) {  // the IES table's maximum over phi at this cos (>= the table)
+        // the nearest bin: bin j holds the maximum over [c_(j-1), c_(j+1)], which
+        // covers every cos that rounds to it (an integer fetch, no filtering)
+        float cl = cax * inversesqrt(max(dot(ax.xyz, ax.xyz), 1e-30));  // dot(Ldir, unit axis)
+        int j = int((0.5 - 0.5 * cl) * float(LIM_REUSE_IES_COS_BINS - 1) + 0.5);
+        Ev *= texelFetch(u_ies_cos, ivec3(clamp(j, 0, LIM_REUSE_IES_COS_BINS - 1), 0, int(sh.w)), 0).r;
     }
 #endif
     float NoL = dot(s.N, Ldir);
@@ -99,10 +109,10 @@ float reuse_slot_target(vec4 pr, vec4 sh, vec4 cone, vec4 ies, Surface s, uint g
     return p > 0.0 && !isinf(p) ? p : 0.0;
 }
 
-// The slot target of the big tile bt's slot (texel offset within the tile's block).
+// The slot target of the big-tile slot at texel (its offset within the tile's block).
 float reuse_slot_target_at(ivec2 texel, Surface s, uint group) {
     return reuse_slot_target(texelFetch(u_slot_pos, texel, 0), texelFetch(u_slot_shape, texel, 0),
-                             texelFetch(u_slot_cone, texel, 0), texelFetch(u_slot_ies, texel, 0), s, group);
+                             texelFetch(u_slot_axis, texel, 0), texel, s, group);
 }
 #endif
 
@@ -204,14 +214,14 @@ Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, o
         ivec2 texel = bt * u_block + ivec2(slot % u_block.x, slot / u_block.x);
 #ifdef STB_REUSE_SLOT_TARGET
         vec4 sh = texelFetch(u_slot_shape, texel, 0);
-        if (sh.w < 0.0 || !(sh.z > 0.0)) continue;
-        uint li = uint(sh.w);
+        if (!(sh.z > 0.0)) continue;
+        uint li = LIM_EMPTY_LIGHT_INDEX;  // read for the pick only (below)
         float Wj = sh.z;
         count += 1.0;
-        float p = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_cone, texel, 0),
-                                    texelFetch(u_slot_ies, texel, 0), s, group);
+        float p = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_axis, texel, 0), texel,
+                                    s, group);
         if (u_shadow_floor < 1.0 && p > 0.0) {
-            float v = luminance(local_shadow_hard(lights[li], s.P, s.N));
+            float v = luminance(local_shadow_hard(lights[reuse_slot_light(texel)], s.P, s.N));
             p *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);
         }
 #else
@@ -238,6 +248,9 @@ Reservoir reuse_initial_bigtile(vec2 fc, Surface s, uint group, inout Rng rng, o
     }
 #ifndef STB_REUSE_QUAD
     reuse_sel_texel = sel_texel;
+#endif
+#ifdef STB_REUSE_SLOT_TARGET
+    if (sel_texel.x >= 0) ini.y = reuse_slot_light(sel_texel);
 #endif
     Reservoir r0 = stream_reservoir(ini, 1.0, 1.0);
     if (u_weight_cap > 0.0 && r0.y != LIM_EMPTY_LIGHT_INDEX) {

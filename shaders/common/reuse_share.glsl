@@ -42,7 +42,7 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
     // This pixel's (light index, resampling weight sum p(y) W) and the quad's others'.
     float wsum = has ? r.W * r.p : 0.0;
 #ifdef STB_REUSE_SLOT_TARGET
-    // the pick's slot texel (its light index is in the slot's data)
+    // the pick's slot texel (its light index: the big-tile reservoir at that texel)
     float yf = has ? float(reuse_sel_texel.y * 4096 + reuse_sel_texel.x) : -1.0;
 #else
     float yf = has ? float(r.y) : -1.0;
@@ -66,10 +66,10 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
             int code = int(ys[k] + 0.5);
             ivec2 texel = ivec2(code % 4096, code / 4096);
             vec4 sh = texelFetch(u_slot_shape, texel, 0);
-            if (sh.w >= 0.0) {
-                yi[k] = uint(sh.w);
-                P[k] = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_cone, texel, 0),
-                                         texelFetch(u_slot_ies, texel, 0), s, group);
+            if (sh.z > 0.0) {
+                yi[k] = reuse_slot_light(texel);
+                P[k] = reuse_slot_target(texelFetch(u_slot_pos, texel, 0), sh, texelFetch(u_slot_axis, texel, 0), texel,
+                                         s, group);
                 if (u_shadow_floor < 1.0 && P[k] > 0.0) {
                     float v = luminance(local_shadow_hard(lights[yi[k]], s.P, s.N));
                     P[k] *= u_shadow_floor + (1.0 - u_shadow_floor) * clamp(v, 0.0, 1.0);

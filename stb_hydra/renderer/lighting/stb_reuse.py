@@ -55,8 +55,8 @@ CURRENT = "stb_reuse_cur"
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
 #: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
-SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_cone", "stb_reuse_slot_ies")
-SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_cone", "u_slot_ies")
+SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_axis")
+SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_axis")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
 MIS_MODES = {"count": 0, "balance": 1, "pairwise": 2}
 
@@ -305,7 +305,7 @@ class ReuseStage:
         self, method: Any, frame: FrameContext, defines: dict[str, Any], big: moderngl.Texture
     ) -> tuple[moderngl.Texture, ...]:
         """``stb_reuse_slots.frag``: each big-tile slot's half of the initial target
-        (``-o reuse_target=tile``), four rgba32f textures in the big tiles' layout."""
+        (``-o reuse_target=tile``), three rgba32f textures in the big tiles' layout."""
         bufs = frame.buffers
         texs = tuple(bufs.texture(n, 4, "f4", size=big.size) for n in SLOTS)
         prog = program(frame, "stb_reuse_slots.frag", defines)
