@@ -183,6 +183,25 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
 # --- unbiasedness --------------------------------------------------------------------------
 
 
+def unbiased_case(select: str, bigtile: str):
+    """(stage, reference image, (w, h), STB options) of the unbiasedness test (also
+    ``tools/convergence_spread.py``'s ``stb`` cases): 200 shadowed lights, weight cap off."""
+    stage = usda_stage(lights_scene(200))
+    w, h = 128, 72
+    ref = stb_hydra.render(stage, width=w, height=h, lighting="reference")
+    # 32 px big tiles at 128x72 cover the same view angle as 128 px tiles at 512x288.
+    opts = dict(
+        weight_cap=None,
+        N=4,
+        K=64,
+        big_tile=32,
+        shadow_res="pixel",
+        select=select,
+        bigtile=bigtile,
+    )
+    return stage, ref, (w, h), opts
+
+
 @pytest.mark.parametrize(
     "select,bigtile,frames",
     [
@@ -204,19 +223,7 @@ def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile, frames):
     the term, may be off anywhere -- that must change the noise, not the mean); big-tile
     candidates streamed or drawn from light clusters (issue 16).
     relMSE with epsilon 1e-2 (scene-linear values here are ~1..100)."""
-    stage = usda_stage(lights_scene(200))
-    w, h = 128, 72
-    ref = stb_hydra.render(stage, width=w, height=h, lighting="reference")
-    # 32 px big tiles at 128x72 cover the same view angle as 128 px tiles at 512x288.
-    opts = dict(
-        weight_cap=None,
-        N=4,
-        K=64,
-        big_tile=32,
-        shadow_res="pixel",
-        select=select,
-        bigtile=bigtile,
-    )
+    stage, ref, (w, h), opts = unbiased_case(select, bigtile)
     # From ``frames`` frames (tests/convergence.py): the split-half squared bias within a
     # third of the relMSE budget ``tol`` a 512-frame mean had (that test allowed ~tol
     # less its noise: 0.9e-3 for all N, 3.5e-3 for quad/pixel), the noise within the

@@ -58,11 +58,21 @@ def closed_form(pts: np.ndarray, pos: np.ndarray, inten: np.ndarray) -> np.ndarr
     return out
 
 
-@pytest.fixture(scope="module")
-def many_lights():
+def many_lights_scene():
+    """(stage, closed-form image) of the unbiasedness tests: 150 point lights over the
+    Lambertian floor (also ``tools/convergence_spread.py``'s ``reuse`` cases)."""
     prims, pos, inten = floor_lights(150)
     stage = usda_stage(LAMBERT_FLOOR_USDA.format(rho=RHO, light=prims))
     return stage, closed_form(plane_points(stage, W, H), pos, inten)
+
+
+#: The unbiasedness tests' options under the case's own: reuse with the weight cap off.
+UNBIASED = dict(REUSE, weight_cap=None, K=64, big_tile=32)
+
+
+@pytest.fixture(scope="module")
+def many_lights():
+    return many_lights_scene()
 
 
 def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
@@ -113,7 +123,7 @@ def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol,
     same budget scaled to the frames and falling as 1/M, the image mean within 1 % (its
     spread at the frames chosen: 0.3 % or less; tools/mutation_check.py plants biases)."""
     stage, exp = many_lights
-    opts = dict(REUSE, weight_cap=None, K=64, big_tile=32, **extra)
+    opts = dict(UNBIASED, **extra)
     imgs = stb_hydra.render_progressive(
         stage, snapshot_counts(frames), width=W, height=H, lighting="stb", **opts
     )

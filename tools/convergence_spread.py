@@ -25,36 +25,24 @@ import numpy as np
 
 def _case(name: str):
     """(stage, truth, width, height, options, channel or None) of a test case."""
-    import stb_hydra
 
     kind, _, arg = name.partition(":")
     if kind == "reuse":
         import test_stb_reuse as r
-        from stagegen import usda_stage
 
         mark = next(
             m
             for m in r.test_unbiased_mean_converges_to_closed_form.pytestmark
             if m.name == "parametrize"
         )
-        extra = mark.args[1][int(arg)][0]
-        prims, pos, inten = r.floor_lights(150)
-        stage = usda_stage(r.LAMBERT_FLOOR_USDA.format(rho=r.RHO, light=prims))
-        truth = r.closed_form(r.plane_points(stage, r.W, r.H), pos, inten)
-        opts = dict(r.REUSE, weight_cap=None, K=64, big_tile=32, **extra)
-        return stage, truth, r.W, r.H, opts, 0
-    if kind == "stb":
+        stage, truth = r.many_lights_scene()
+        return stage, truth, r.W, r.H, dict(r.UNBIASED, **mark.args[1][int(arg)][0]), 0
+    select, dash, bigtile = arg.partition("-")
+    if kind == "stb" and dash:
         import test_stb as t
-        from stagegen import usda_stage
 
-        select, bigtile = arg.split("-")
-        stage = usda_stage(t.lights_scene(200))
-        truth = stb_hydra.render(stage, width=128, height=72, lighting="reference")
-        opts = dict(
-            weight_cap=None, N=4, K=64, big_tile=32, shadow_res="pixel",
-            select=select, bigtile=bigtile,
-        )  # fmt: skip
-        return stage, truth, 128, 72, opts, None
+        stage, truth, (w, h), opts = t.unbiased_case(select, bigtile)
+        return stage, truth, w, h, opts, None
     if kind == "spots":
         import test_stb_reuse as r
 
