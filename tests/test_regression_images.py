@@ -47,11 +47,33 @@ def _cases() -> list[Case]:
 CASES = _cases()
 
 
+#: How the stored stages reach ../shared (chess24: the OpenChessSet), relative to their
+#: folder; with the data elsewhere (``STB_SHARED``, a checkout not beside ../shared) the
+#: stage is opened from its text with that reference made absolute.
+_SHARED_REF = "@../../../../shared/"
+
+
+def _stage(case: Case):
+    """The case's stage: its file, or (it references ../shared and the shared data is
+    not there) an in-memory copy whose reference points at ``conftest.SHARED``."""
+    from conftest import SHARED
+
+    path = REPO / case.scene
+    text = path.read_text()
+    if _SHARED_REF not in text or (REPO.parent / "shared").resolve() == SHARED:
+        return str(path)
+    from pxr import Sdf, Usd
+
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    layer.ImportFromString(text.replace(_SHARED_REF, f"@{SHARED.as_posix()}/"))
+    return Usd.Stage.Open(layer)
+
+
 def render_case(case: Case) -> np.ndarray:
     import stb_hydra.api as api
 
     return api.render(
-        str(REPO / case.scene),
+        _stage(case),
         width=SIZE[0],
         height=SIZE[1],
         lighting=case.lighting,
