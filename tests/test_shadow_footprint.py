@@ -280,7 +280,8 @@ def test_offline_first_frame_is_sized_from_the_footprint(gl_ctx):
     """``Engine.render`` (offline) measures the footprint on one G-buffer before the
     first frame's maps are captured: after a one-frame render the near light's map has
     the footprint's side (closed form) and holds a capture, the frame counter moved by
-    one (same seeds as without the probe), and the edge is as sharp as the geometry
+    one (same seeds as without the probe) and the timings hold one frame with the probe's
+    cost in it, and the edge is as sharp as the geometry
     says. Without the probe the first frame has the flux rule's side (3 octaves less)."""
     stage = usda_stage(TEXT)
     want = policy.apply_hysteresis(
@@ -294,6 +295,8 @@ def test_offline_first_frame_is_sized_from_the_footprint(gl_ctx):
         assert rect is not None and rect.size == want
         assert sch.is_valid("/Near")
         assert eng.frame_index == 1
+        # One frame in the timings, the probe's cost inside it (not a frame of its own).
+        assert len(eng.timings.frames) == 1 and eng.timings.frames[0]["probe"] > 0.0
         img = np.array(eng.aovs["color"][..., :3])
     finally:
         eng.release()

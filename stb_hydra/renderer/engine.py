@@ -397,9 +397,11 @@ class Engine:
         for w in frame.warnings:
             self._warn_once(w)
         park(self.ctx)
-        if not probe:
+        if probe:  # not a frame: its cost shows in the next frame's timings as "probe"
+            self.timings.carry_frame("probe")
+        else:
             self.frame_index += 1
-        self.timings.end_frame()
+            self.timings.end_frame()
         frame.stats["programs_compiled"] = shader_library(self.ctx).compiled
         return frame
 

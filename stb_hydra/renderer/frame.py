@@ -158,8 +158,20 @@ class Timings:
     def __init__(self) -> None:
         self.frames: list[dict[str, float]] = []
         self.current: dict[str, float] = defaultdict(float)
+        #: Work done for the next frame but not as a frame of its own ({key: ms}).
+        self._carried: dict[str, float] = {}
 
     def start_frame(self) -> None:
+        self.current = defaultdict(float, self._carried)
+        self._carried = {}
+
+    def carry_frame(self, name: str) -> None:
+        """Close the current frame without recording it as a frame: its total (the sum
+        of its top-level keys, ms) goes into the next frame as ``name`` (e.g. the
+        offline shadow-footprint probe, which renders part of a frame that is never
+        shown: ``Engine._probe_footprint``)."""
+        total = sum(v for k, v in self.current.items() if "." not in k)
+        self._carried[name] = self._carried.get(name, 0.0) + total
         self.current = defaultdict(float)
 
     def end_frame(self) -> None:
