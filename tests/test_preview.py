@@ -724,3 +724,17 @@ def test_time_display_says_default_for_the_default_time_code(scene, tmp_path, gl
     capfd.readouterr()
     assert cli.main(["inspect", str(scene), "--json", "--time", "3"]) == 0
     assert json.loads(capfd.readouterr().out)["time"] == 3.0
+
+
+@pytest.mark.gl
+def test_sun_only_session_lists_the_local_lights(scene, gl_ctx):
+    """``--lighting sun`` builds its engine without the local lights it cannot draw
+    (``light_filter``); the previewer's light list still shows them, so they can be
+    edited before switching to a method that draws them."""
+    s = _session(scene, gl_ctx, lighting="sun")
+    try:
+        assert [r["path"] for r in s.lights()] == ["/Lights/Left", "/Lights/Right"]
+        assert s.step()
+        assert s.engine.scene_index.skipped_lights == 0
+    finally:
+        s.release()

@@ -153,6 +153,10 @@ class PreviewSession(LiveReload, Navigation, StageContents, DisplayControls):
             self.error = _one_line(exc)
             return
         e = self.engine
+        if e.scene_index.skipped_lights:
+            # The light list shows every light, also under a method that draws none of
+            # the local ones (``--lighting sun`` builds its engine without them).
+            e.include_all_lights()
         self._viewport = (int(e.settings.width), int(e.settings.height or 1))
         # The window renders one frame per tick as one long sequence: the engine's
         # accumulation is reset here, on every change, not after each frame.

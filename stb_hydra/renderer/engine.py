@@ -115,7 +115,7 @@ class Engine:
         self._sync(None)  # first sync so bounds/cameras are known
         if self.scene_index.skipped_lights and not self.delegate.batches:
             # No geometry: the local lights frame the camera and make the stage non-empty.
-            self._include_all_lights()
+            self.include_all_lights()
         self._choose_camera()
         if not self.settings.height:
             cam, _ = self.camera()
@@ -165,7 +165,7 @@ class Engine:
         the shadow atlas and the render buffers are kept."""
         method = self._make_method(name, options)  # validates before anything changes
         if method.uses_local_lights and self.scene_index.skipped_lights:
-            self._include_all_lights()
+            self.include_all_lights()
         # Debug views the new method does not draw are no longer asked for.
         methods_views = set(debug_aov_names())
         self._requested_aovs = {
@@ -245,8 +245,10 @@ class Engine:
 
         return renderer_info(self.ctx)
 
-    def _include_all_lights(self) -> None:
-        """Populate and sync the lights the scene index left out (see ``light_filter``)."""
+    def include_all_lights(self) -> None:
+        """Populate and sync the lights the scene index left out (see ``light_filter``):
+        a method switch, the ``lightcount`` AOV, or a client that lists the stage's
+        lights (``stb preview``) needs them all."""
         self.scene_index.set_light_filter(None)
         self._sync(None)
 
@@ -490,7 +492,7 @@ class Engine:
         """AOVs read back on the last frame of each render (``color`` always)."""
         names = set(names)
         if "lightcount" in names and self.scene_index.skipped_lights:
-            self._include_all_lights()  # it counts the local lights in reach of a pixel
+            self.include_all_lights()  # it counts the local lights in reach of a pixel
         self._requested_aovs = names | {"color"}
         self.aov_output.requested = self._requested_aovs
 
