@@ -137,19 +137,24 @@ def plot_pareto(rows: list[dict], path: Path, title: str) -> None:
     plt.close(fig)
 
 
+def _blank(v: object) -> bool:
+    """A metric that was skipped, or a column a CSV written before it existed lacks."""
+    return v in ("", None)
+
+
 def _opt(v: object, fmt: str = ".4f") -> str:
     """A metric that may be absent ("" when skipped)."""
-    return "" if v in ("", None) else format(float(v), fmt)  # type: ignore[arg-type]
+    return "" if _blank(v) else format(float(v), fmt)  # type: ignore[arg-type]
 
 
 def _x_ref(r: dict) -> str:
     """``x_reference`` as ``0.05x`` ("" in a CSV written before the column existed)."""
     v = r.get("x_reference", "")
-    return f"{float(v):.2f}x" if v not in ("", None) else ""
+    return "" if _blank(v) else f"{float(v):.2f}x"
 
 
 def _pct(v: object) -> str:
-    return f"{float(v) * 100:.1f} %" if v not in ("", None) else ""  # type: ignore[arg-type]
+    return "" if _blank(v) else f"{float(v) * 100:.1f} %"  # type: ignore[arg-type]
 
 
 def _fmt_row(r: dict | None, key: str = "frame_ms") -> str:
