@@ -143,6 +143,12 @@ BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT = 64
 SHADOW_ATLAS_SIZE_DEFAULT = 4096
 #: Largest atlas side accepted: GL 4.5 guarantees GL_MAX_TEXTURE_SIZE >= 16384.
 SHADOW_ATLAS_SIZE_MAX = 16384
+#: Atlas textures a released engine leaves for the next engine of the same GL context
+#: (``shadow_capture``'s pool), at most this many bytes in all: allocating and first
+#: touching a 4096^2 16-bit atlas costs ~50-100 ms of page faults on llvmpipe, paid
+#: again by every new engine (a stage reload, each render of a script or test). 64 MiB
+#: keeps two default atlases; a larger one is freed as before.
+SHADOW_ATLAS_POOL_BYTES = 64 * 1024 * 1024
 
 #: PCF border (texels) around each map, inside its atlas rect: a 5x5 tent reads
 #: +-2 texels around the centre, +1 for the bilinear/gather footprint -> 3.

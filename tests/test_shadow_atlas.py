@@ -384,3 +384,31 @@ def test_stats_fragmentation() -> None:
     assert s.largest_free_fraction == pytest.approx(512 * 512 / free)
     assert s.fragmentation == pytest.approx(1 - 512 * 512 / free)
     assert s.occupancy == pytest.approx(2 * 256 * 256 / 1024**2)
+
+
+def test_a_released_atlas_is_reused_cleared_and_the_pool_is_bounded(gl_ctx):
+    """An engine's released atlas texture goes to the next capturer of the context
+    (no new 32 MiB allocation and first touch), cleared to "unoccluded" whatever the
+    last engine left in it; the pool never holds more than SHADOW_ATLAS_POOL_BYTES."""
+    from stb_hydra import limits
+    from stb_hydra.renderer import shadow_capture as sc
+
+    sc.release_atlas_pool()
+    a = sc.ShadowCapturer(gl_ctx, 256)
+    a.atlas_fbo.clear(0.25, 0.25, 0.25, 0.25)  # a previous engine's maps
+    glo = a.atlas.glo
+    a.release()
+    b = sc.ShadowCapturer(gl_ctx, 256)
+    try:
+        assert b.atlas.glo == glo
+        assert (np.frombuffer(b.atlas.read(), np.uint16) == 65535).all()
+    finally:
+        b.release()
+    side = limits.SHADOW_ATLAS_SIZE_DEFAULT
+    caps = [sc.ShadowCapturer(gl_ctx, side) for _ in range(4)]
+    for c in caps:
+        c.release()
+    held = sum(k[1] * k[1] * 2 * len(v) for k, v in sc._atlas_pool.items())
+    assert 0 < held <= limits.SHADOW_ATLAS_POOL_BYTES
+    sc.release_atlas_pool()
+    assert not sc._atlas_pool

@@ -50,6 +50,50 @@ class CaptureWork(NamedTuple):
     triangles: float  # triangles submitted after culling (each face counts its own)
 
 
+#: Released atlases ((texture, framebuffer)) per (context id, side), for the next
+#: ``ShadowCapturer`` of that context: ``limits.SHADOW_ATLAS_POOL_BYTES`` in all.
+_atlas_pool: dict[tuple[int, int], list[tuple[moderngl.Texture, moderngl.Framebuffer]]] = {}
+
+
+def _atlas_bytes(size: int) -> int:
+    return size * size * 2  # one 16-bit unorm channel
+
+
+def _take_atlas(ctx: moderngl.Context, size: int) -> tuple[moderngl.Texture, moderngl.Framebuffer]:
+    """A pooled atlas of ``ctx`` and ``size`` (its content stale: the caller clears it),
+    else a new one."""
+    kept = _atlas_pool.get((id(ctx), size))
+    while kept:
+        tex, fbo = kept.pop()
+        if tex.ctx is ctx:  # not a context that died and whose id was reused
+            return tex, fbo
+    tex = ctx.texture((size, size), 1, dtype="nu2")
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.repeat_x = tex.repeat_y = False
+    return tex, ctx.framebuffer(color_attachments=[tex])
+
+
+def _give_atlas(ctx: moderngl.Context, tex: moderngl.Texture, fbo: moderngl.Framebuffer) -> None:
+    """Keep a released atlas for the next capturer of ``ctx`` while the pool's bytes
+    stay within ``limits.SHADOW_ATLAS_POOL_BYTES``; else free it."""
+    size = int(tex.width)
+    held = sum(_atlas_bytes(k[1]) * len(v) for k, v in _atlas_pool.items())
+    if held + _atlas_bytes(size) > limits.SHADOW_ATLAS_POOL_BYTES:
+        fbo.release()
+        tex.release()
+        return
+    _atlas_pool.setdefault((id(ctx), size), []).append((tex, fbo))
+
+
+def release_atlas_pool() -> None:
+    """Free every pooled atlas (e.g. before a context is released)."""
+    for kept in _atlas_pool.values():
+        for tex, fbo in kept:
+            fbo.release()
+            tex.release()
+    _atlas_pool.clear()
+
+
 class ShadowCapturer:
     """Owns the atlas texture and the temporary depth targets.
 
@@ -68,11 +112,8 @@ class ShadowCapturer:
         self.size = size
         self.mode = mode
         self.cull = cull
-        self.atlas = ctx.texture((size, size), 1, dtype="nu2")
-        self.atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.atlas.repeat_x = self.atlas.repeat_y = False
-        self.atlas_fbo = ctx.framebuffer(color_attachments=[self.atlas])
-        self.atlas_fbo.clear(1.0, 1.0, 1.0, 1.0)
+        self.atlas, self.atlas_fbo = _take_atlas(ctx, size)
+        self.atlas_fbo.clear(1.0, 1.0, 1.0, 1.0)  # every texel "unoccluded", pooled or new
         self._temps: dict[tuple[int, int], tuple[moderngl.Texture, moderngl.Framebuffer]] = {}
         #: Depth targets of split omni captures in progress (key -> target), kept
         #: between frames until the chunk that completes the map copies them.
@@ -299,8 +340,7 @@ class ShadowCapturer:
             fbo.release()
             tex.release()
         self._temps.clear()
-        self.atlas_fbo.release()
-        self.atlas.release()
+        _give_atlas(self.ctx, self.atlas, self.atlas_fbo)  # the next engine's, or freed
 
 
 _fs_vaos: dict[int, moderngl.VertexArray] = {}
