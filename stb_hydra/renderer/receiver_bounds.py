@@ -27,23 +27,25 @@ def leaf_boxes(
     corners = np.asarray(points, dtype=np.float64)[tri]  # (m, 3, 3)
     tlo, thi = corners.min(axis=1), corners.max(axis=1)
     centre = 0.5 * (tlo + thi)
-    groups = [np.arange(len(tri))]
-    while 2 * len(groups) <= max_leaves:
-        split: list[np.ndarray] = []
-        for g in groups:
-            if len(g) < 2:
-                split.append(g)
-                continue
-            c = centre[g]
-            axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
-            order = g[np.argsort(c[:, axis], kind="stable")]
-            half = len(order) // 2
-            split += [order[:half], order[half:]]
-        if len(split) == len(groups):
+    # The groups as one permutation of the triangles cut into segments (``starts``),
+    # split level by level for all segments at once: each segment sorted (stably) on
+    # its centres' longest axis by one lexsort, then cut at its half.
+    order = np.arange(len(tri))
+    starts = np.zeros(1, dtype=np.int64)
+    while 2 * len(starts) <= max_leaves:
+        ends = np.append(starts[1:], len(order))
+        sizes = ends - starts
+        if not (sizes >= 2).any():
             break
-        groups = split
-    lo = np.array([tlo[g].min(axis=0) for g in groups])
-    hi = np.array([thi[g].max(axis=0) for g in groups])
+        c = centre[order]
+        extent = np.maximum.reduceat(c, starts, axis=0) - np.minimum.reduceat(c, starts, axis=0)
+        axis = np.argmax(extent, axis=1)  # per segment (the first longest, as argmax)
+        seg = np.repeat(np.arange(len(starts)), sizes)
+        order = order[np.lexsort((c[np.arange(len(order)), axis[seg]], seg))]
+        halves = (starts + sizes // 2)[sizes >= 2]
+        starts = np.sort(np.concatenate([starts, halves]))
+    lo = np.minimum.reduceat(tlo[order], starts, axis=0)
+    hi = np.maximum.reduceat(thi[order], starts, axis=0)
     return lo, hi
 
 

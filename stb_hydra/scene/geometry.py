@@ -393,7 +393,9 @@ def _face_varying_mesh(
 ) -> tuple[MeshGeometry, np.ndarray]:
     """One vertex per face-vertex that a triangle uses; also returns those
     face-vertices (``used``: output vertex k is face-vertex ``used[k]``)."""
-    used = np.unique(topo.corners)
+    mask = np.zeros(len(topo.fvi), dtype=bool)
+    mask[topo.corners] = True
+    used = np.flatnonzero(mask)  # np.unique(topo.corners) in O(n), without the sort
     remap = np.full(len(topo.fvi), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
     out_pts = topo.points[topo.fvi[used]]
@@ -411,6 +413,15 @@ def _double_sided(prim: Usd.Prim) -> bool:
     return bool(a.Get()) if a and a.HasAuthoredValue() else False
 
 
+def _sum_rows(index: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """(n, 3) float64: ``rows`` summed by ``index`` (``np.add.at`` on zeros, in the same
+    order, so to the same bits; ``np.bincount`` per column is ~10x faster)."""
+    out = np.empty((n, 3))
+    for k in range(3):  # the three columns, not a per-row loop
+        out[:, k] = np.bincount(index, weights=rows[:, k], minlength=n)
+    return out
+
+
 def _auto_normals(topo: _Topology) -> np.ndarray:
     """Per face-vertex normals: smooth, but faceted where the smooth normal
     deviates from the face normal by more than ``CREASE_ANGLE_DEG``."""
@@ -418,11 +429,9 @@ def _auto_normals(topo: _Topology) -> np.ndarray:
     p = points.astype(np.float64)
     tri_pts = p[fvi[topo.corners]]
     tn = np.cross(tri_pts[:, 1] - tri_pts[:, 0], tri_pts[:, 2] - tri_pts[:, 0])  # area-weighted
-    face_n = np.zeros((len(topo.counts), 3))
-    np.add.at(face_n, topo.tri_face, tn)
+    face_n = _sum_rows(topo.tri_face, tn, len(topo.counts))
     face_unit = _unit(face_n)
-    vert_n = np.zeros((len(points), 3))
-    np.add.at(vert_n, fvi, face_n[face_of_corner])
+    vert_n = _sum_rows(fvi, face_n[face_of_corner], len(points))
     vert_unit = _unit(vert_n)
     smooth = vert_unit[fvi]
     flat = face_unit[face_of_corner]
