@@ -258,6 +258,7 @@ def _dilate(planes: list[np.ndarray], covered: np.ndarray) -> tuple[list[np.ndar
     h, w = covered.shape
     pad = np.pad(covered, 1).astype(np.float32)
     acc = [np.zeros_like(p) for p in planes]
+    padded = [np.pad(src, ((1, 1), (1, 1), (0, 0))) for src in planes]  # once, not per shift
     cnt = np.zeros((h, w), np.float32)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
@@ -265,9 +266,8 @@ def _dilate(planes: list[np.ndarray], covered: np.ndarray) -> tuple[list[np.ndar
                 continue
             m = pad[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
             cnt += m
-            for a, src in zip(acc, planes):
-                sh = np.pad(src, ((1, 1), (1, 1), (0, 0)))[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
-                a += sh * m[..., None]
+            for a, src in zip(acc, padded):
+                a += src[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w] * m[..., None]
     grow = (~covered) & (cnt > 0)
     k = np.maximum(cnt, 1.0)[..., None]
     out = [np.where(grow[..., None], a / k, src) for a, src in zip(acc, planes)]
