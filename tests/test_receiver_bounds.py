@@ -75,3 +75,21 @@ def test_world_boxes_hold_the_transformed_boxes():
     for k in range(3):
         w = np.c_[p.reshape(-1, 3), np.ones(800)] @ xf[k]
         assert _inside_some(w[:, :3], wlo[4 * k : 4 * k + 4], whi[4 * k : 4 * k + 4]).all()
+
+
+def test_leaf_boxes_are_remembered_by_content():
+    """The same mesh again (another engine, a reload) gets the remembered boxes; a mesh
+    whose points moved gets its own, split afresh; remembered arrays are read-only."""
+    from stb_hydra.renderer.receiver_bounds import split_leaf_boxes
+
+    rng = np.random.default_rng(5)
+    pts, tri = _boxes_mesh(rng.uniform(-10.0, 10.0, (40, 3)))
+    a = leaf_boxes(pts, tri, max_leaves=16)
+    b = leaf_boxes(pts.copy(), tri.copy(), max_leaves=16)
+    assert a[0] is b[0] and not a[0].flags.writeable
+    moved = pts + np.array([0.0, 3.0, 0.0])
+    c = leaf_boxes(moved, tri, max_leaves=16)
+    fresh = split_leaf_boxes(moved, tri, max_leaves=16)
+    assert np.array_equal(c[0], fresh[0]) and np.array_equal(c[1], fresh[1])
+    assert np.array_equal(c[0], a[0] + [0.0, 3.0, 0.0])
+    assert leaf_boxes(pts, tri, max_leaves=8)[0].shape[0] <= 8  # the leaf count is in the key

@@ -9,12 +9,46 @@ triangle lies inside its leaf's box) and much tighter (issue 34 item 2)."""
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
+
 import numpy as np
 
 from .. import limits
 
+#: ``leaf_boxes`` results by the content of their mesh (blake2b of points, indices and
+#: the leaf count), most recently used last: a stage opened again (a reload, the next
+#: render of a script, another engine) does not split its meshes again.
+_leaf_cache: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+
 
 def leaf_boxes(
+    points: np.ndarray, indices: np.ndarray, max_leaves: int = limits.RECEIVER_LEAVES_PER_MESH
+) -> tuple[np.ndarray, np.ndarray]:
+    """``split_leaf_boxes``, remembered for the last ``limits.RECEIVER_LEAF_CACHE_MESHES``
+    meshes (by content; the arrays returned are read-only)."""
+    pts = np.ascontiguousarray(points)
+    idx = np.ascontiguousarray(indices)
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{pts.dtype.str}{pts.shape}{idx.dtype.str}{idx.shape}".encode())
+    h.update(pts.data)  # the buffers themselves, not copies
+    h.update(idx.data)
+    h.update(int(max_leaves).to_bytes(8, "little"))
+    key = h.digest()
+    hit = _leaf_cache.get(key)
+    if hit is not None:
+        _leaf_cache.move_to_end(key)
+        return hit
+    lo, hi = split_leaf_boxes(pts, idx, max_leaves)
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    _leaf_cache[key] = (lo, hi)
+    while len(_leaf_cache) > limits.RECEIVER_LEAF_CACHE_MESHES:
+        _leaf_cache.popitem(last=False)
+    return lo, hi
+
+
+def split_leaf_boxes(
     points: np.ndarray, indices: np.ndarray, max_leaves: int = limits.RECEIVER_LEAVES_PER_MESH
 ) -> tuple[np.ndarray, np.ndarray]:
     """Object-space AABBs ((G, 3) lo, hi; G <= max_leaves) that hold every triangle of
