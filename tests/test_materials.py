@@ -764,3 +764,26 @@ def test_textured_clearcoat_and_no_coat_target_without_one(tmp_path, gl_ctx):
         assert not eng.delegate.has_clearcoat
     finally:
         eng.release()
+
+
+def test_texture_headers_are_remembered_until_the_file_changes(tmp_path):
+    """``read_info`` remembers a header per (file, mtime, size): a file rewritten with
+    another size is read again, and a UDIM set keeps its own layers."""
+    import os
+
+    from stb_hydra.renderer.textures import read_info
+
+    p = write_image(tmp_path / "t.png", cells(2, 4))
+    a = read_info(str(p))
+    assert (a.width, a.height, a.layers) == (8, 8, [(str(p), 0)])
+    a.layers.append(("stray", 1))  # a caller's change does not reach the next caller
+    assert read_info(str(p)).layers == [(str(p), 0)]
+    st = os.stat(p)
+    write_image(p, cells(4, 4))
+    os.utime(p, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    b = read_info(str(p))
+    assert (b.width, b.height) == (16, 16)
+    for tile in (1001, 1002):
+        write_image(tmp_path / f"u.{tile}.png", cells(2, 4))
+    u = read_info(str(tmp_path / "u.<UDIM>.png"))
+    assert [t for _p, t in u.layers] == [1001, 1002]

@@ -24,9 +24,11 @@ No per-texel Python loops: decoding, downscaling and conversion are numpy / OCIO
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import os
 import re
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import moderngl
@@ -130,12 +132,16 @@ def udim_tiles(pattern: str) -> list[tuple[str, int]]:
     return sorted(out, key=lambda x: x[1])
 
 
+#: Headers read by ``read_info`` in this process, by (file, mtime ns, size): the next
+#: engine on the same files (a reload, another render) does not open them again; a file
+#: rewritten on disk has a new key. At most ``limits.TEXTURE_INFO_CACHE_FILES``.
+_info_cache: OrderedDict[tuple[str, int, int], ImageInfo] = OrderedDict()
+
+
 def read_info(path: str) -> ImageInfo:
     """Header of a texture file (or of a ``<UDIM>`` set: its first tile; every tile
     must have the same size, or the set is refused). Raises ``OSError`` with a
     one-line reason."""
-    import OpenImageIO as oiio
-
     if _UDIM in path:
         tiles = udim_tiles(path)
         if not tiles:
@@ -144,11 +150,28 @@ def read_info(path: str) -> ImageInfo:
         tiles = [(path, 0)]
     first = tiles[0][0]
     try:
-        size = os.path.getsize(first)
+        st = os.stat(first)
     except OSError:
         raise OSError("file not found") from None
-    if size > limits.TEXTURE_MAX_FILE_BYTES:
+    if st.st_size > limits.TEXTURE_MAX_FILE_BYTES:
         raise OSError(f"file larger than {limits.TEXTURE_MAX_FILE_BYTES} bytes")
+    key = (first, st.st_mtime_ns, st.st_size)
+    known = _info_cache.get(key)
+    if known is None:
+        known = _read_header(first)
+        _info_cache[key] = known
+        while len(_info_cache) > limits.TEXTURE_INFO_CACHE_FILES:
+            _info_cache.popitem(last=False)
+    else:
+        _info_cache.move_to_end(key)
+    return dataclasses.replace(known, layers=list(tiles))
+
+
+def _read_header(first: str) -> ImageInfo:
+    """``read_info`` of one file, from the file (its ``layers``: that file alone)."""
+    import OpenImageIO as oiio
+
+    tiles = [(first, 0)]
     inp = oiio.ImageInput.open(first)
     if inp is None:
         raise OSError(_oiio_reason(oiio.geterror()))
