@@ -470,8 +470,7 @@ def compute_tangents(
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
     ds = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * inv  # dP/ds
     dt = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * inv  # dP/dt
-    tsum = np.zeros((n, 3))
-    bsum = np.zeros((n, 3))
+    idx, tparts, bparts = [], [], []  # each corner's share, summed per vertex below
     corners = ((0, p1 - p0, p2 - p0), (1, p2 - p1, p0 - p1), (2, p0 - p2, p1 - p2))
     for k, a, b in corners:
         la = np.linalg.norm(a, axis=1)
@@ -483,8 +482,13 @@ def compute_tangents(
         tb = dt - vn * np.einsum("ij,ij->i", dt, vn)[:, None]
         ts = ts / np.maximum(np.linalg.norm(ts, axis=1, keepdims=True), 1e-30)
         tb = tb / np.maximum(np.linalg.norm(tb, axis=1, keepdims=True), 1e-30)
-        np.add.at(tsum, t[:, k], ts * ang)
-        np.add.at(bsum, t[:, k], tb * ang)
+        idx.append(t[:, k])
+        tparts.append(ts * ang)
+        bparts.append(tb * ang)
+    # Corner 0 of every triangle, then 1, then 2: the order of three np.add.at calls.
+    order = np.concatenate(idx)
+    tsum = _sum_rows(order, np.concatenate(tparts), n)
+    bsum = _sum_rows(order, np.concatenate(bparts), n)
     tan = tsum - nrm * np.einsum("ij,ij->i", tsum, nrm)[:, None]
     ln = np.linalg.norm(tan, axis=1)
     bad = ln < 1e-12
