@@ -15,6 +15,10 @@ layout(local_size_x = CULL_GROUP_SIZE) in;
 
 layout(std430, binding = SSBO_CELL_HEADERS) writeonly buffer CellHeaders { uvec2 cell_header[]; };
 layout(std430, binding = SSBO_CELL_LISTS) writeonly buffer CellLights { uint cell_lights[]; };
+#ifdef CELL_POS_RANGE
+// each kept entry's light pos_range beside its index (tiled_lighting.frag's walk)
+layout(std430, binding = SSBO_CELL_POS_RANGE) writeonly buffer CellPosRange { vec4 cell_pos_range[]; };
+#endif
 layout(std430, binding = SSBO_CELL_EXTRA) buffer CullStats {
     uint stat_dropped;      // light-cell pairs past the cap
     uint stat_cells_over;   // cells whose list overflowed
@@ -84,8 +88,9 @@ void main() {
     for (uint base = 0u; base < n; base += uint(CULL_GROUP_SIZE)) {
         uint i = base + t;
         bool hit = false;
+        vec4 pr = vec4(0.0);
         if (i < n) {
-            vec4 pr = lights[i].pos_range;
+            pr = lights[i].pos_range;
             vec3 c = (u_view * vec4(pr.xyz, 1.0)).xyz;
             float d = -c.z;
             float r0 = pr.w * u_radius_scale;
@@ -103,7 +108,12 @@ void main() {
         uint before = uint(bitCount(s_mask[t >> 5] & ((1u << (t & 31u)) - 1u)));
         for (uint w = 0u; w < (t >> 5); ++w) before += uint(bitCount(s_mask[w]));
         uint rank = s_count + before;
-        if (hit && rank < u_cap) cell_lights[cell * u_stride + rank] = i;
+        if (hit && rank < u_cap) {
+            cell_lights[cell * u_stride + rank] = i;
+#ifdef CELL_POS_RANGE
+            cell_pos_range[cell * u_stride + rank] = pr;
+#endif
+        }
         memoryBarrierShared();
         barrier();
         if (t == 0u) {

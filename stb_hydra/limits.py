@@ -379,10 +379,21 @@ CULL_MASK_WORDS = (CULL_GROUP_SIZE + 31) // 32
 #: = 128 MiB of SSBO. Uncapped lists of huge lights over many cells past this get a
 #: uniform per-cell cap (drops counted, one warning) instead of an allocation failure.
 GRID_MAX_LIST_ENTRIES = 32 * 1024 * 1024
+#: tiled / clustered (GPU assignment): most bytes of the per-entry ``pos_range`` copies
+#: (16 B an entry, sized like the lists: cells x list stride) that let the shading's
+#: list walk read one vec4 per step; past it the walk reads the light buffer instead
+#: (same image, slower). CPU-built clustered lists are exact-size and always have it.
+CELL_POS_RANGE_MAX_BYTES = 128 * 1024 * 1024
 
 #: Clustered / light-tree screen tile (px): Persson 2013 uses 64 px tiles; O'Donnell and
-#: Chajdas found 32-64 px the best CPU/GPU trade-off (their 48 px).
+#: Chajdas found 32-64 px the best CPU/GPU trade-off (their 48 px). The light tree's
+#: default.
 CLUSTER_TILE_PX_DEFAULT = 64
+#: `clustered`'s default tile (px): tiled's 16. On llvmpipe a pixel's list walk costs
+#: per entry of its cluster, and a 64 px tile puts 16x the pixels behind each listed
+#: light (issue 34 item C: 5,000 sphere lights at 160x90, CPU time, 0.30x -> 0.24x the
+#: reference; docs/PERFORMANCE.md).
+CLUSTERED_TILE_PX_DEFAULT = 16
 CLUSTER_TILE_PX_RANGE = (8, 256)
 #: Exponential depth slices after the near slice (Persson: 16 incl. the near one; we
 #: add the near slice on top, as the issue asks). 0 = 2D tiles only (tree-only mode).

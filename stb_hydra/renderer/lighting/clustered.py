@@ -32,7 +32,7 @@ import numpy as np
 from ... import limits
 from ..gl import set_uniform, shader_library
 from ..records import InViewLights
-from ..shader_constants import SSBO_LIGHTS
+from ..shader_constants import SSBO_CELL_POS_RANGE, SSBO_LIGHTS
 from .base import LightingMethod, Warn, program
 from .light_tree_build import (
     CellLists,
@@ -50,25 +50,35 @@ from .tiled import (
     SSBOPool,
     cell_count_stats,
     cull_uniforms,
+    entry_pos_range,
     light_ssbo,
     parse_cap,
     read_stats,
     read_totals,
     shade_direct,
+    walk_defines,
 )
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
     from ..gl_delegate import GLRenderDelegate
 
-GRID_OPTIONS = Schema(
-    Opt(
-        "tile",
-        int,
-        limits.CLUSTER_TILE_PX_DEFAULT,
-        range=limits.CLUSTER_TILE_PX_RANGE,
-        doc="screen tile size of the grid, px",
-    ),
+
+def grid_options(tile_default: int) -> Schema:
+    """The grid's options (clustered, light tree) with ``tile_default`` px tiles."""
+    return Schema(
+        Opt(
+            "tile",
+            int,
+            tile_default,
+            range=limits.CLUSTER_TILE_PX_RANGE,
+            doc="screen tile size of the grid, px",
+        ),
+        *DEPTH_OPTIONS,
+    )
+
+
+DEPTH_OPTIONS = (
     Opt(
         "slices",
         int,
@@ -85,7 +95,9 @@ GRID_OPTIONS = Schema(
     ),
     Opt("far", float, None, nullable=True, doc="far end of the grid, m (none: scene bounds)"),
 )
-OPTIONS = GRID_OPTIONS + Schema(
+#: The light tree's grid (Persson's 64 px tiles).
+GRID_OPTIONS = grid_options(limits.CLUSTER_TILE_PX_DEFAULT)
+OPTIONS = grid_options(limits.CLUSTERED_TILE_PX_DEFAULT) + Schema(
     Opt("assign", str, "cpu", choices=("cpu", "gpu"), doc="light assignment on CPU or GPU"),
     Opt("cap", int, None, nullable=True, doc="most lights per cluster (none: no cap)"),
 )
@@ -185,6 +197,7 @@ class ClusteredLighting(LightingMethod):
         grid = self.grid
         assert grid is not None  # prepare made it (lights in view)
         C = grid.count
+        pos_range: moderngl.Buffer | None
         if self.lists is not None:
             with frame.timings_scope("clustered_upload"):
                 L = self.lists
@@ -192,15 +205,20 @@ class ClusteredLighting(LightingMethod):
                 hdr[:, 0], hdr[:, 1] = L.offset, L.count
                 headers = self.pool.upload("headers", hdr, BIND_HEADERS)
                 lists = self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
+                # each entry's pos_range, the light buffer's own floats (the walk's test)
+                assert self.delegate is not None and self.delegate.fov_pos_range is not None
+                pr = self.delegate.fov_pos_range[L.light]
+                pos_range = self.pool.upload("entry_pos_range", pr, SSBO_CELL_POS_RANGE)
             frame.stats["dropped_lights"] = int(L.dropped)
             frame.stats["list_entries"] = int(L.entries)
             frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
             frame.stats.update(cell_count_stats(L.total, frame.light_count))
         else:
-            headers, lists = self._assign_gpu(frame, grid, self.pool)
+            headers, lists, pos_range = self._assign_gpu(frame, grid, self.pool)
 
         with frame.timings_scope("clustered_shade"):
-            prog = program(frame, "clustered_lighting.frag", self.lighting_defines(frame))
+            defines = walk_defines(self.lighting_defines(frame), pos_range)
+            prog = program(frame, "clustered_lighting.frag", defines)
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
@@ -216,7 +234,7 @@ class ClusteredLighting(LightingMethod):
 
     def _assign_gpu(
         self, frame: FrameContext, grid: ClusterGrid, pool: SSBOPool
-    ) -> tuple[moderngl.Buffer, moderngl.Buffer]:
+    ) -> tuple[moderngl.Buffer, moderngl.Buffer, moderngl.Buffer | None]:
         ctx = frame.ctx
         gx, gy, gz = grid.dims
         C = grid.count
@@ -233,9 +251,11 @@ class ClusteredLighting(LightingMethod):
         stats = pool.get("stats", 16 + C * 4)
         stats.write(np.zeros(4, dtype=np.uint32).tobytes())
         self._stats = stats
+        pos_range = entry_pos_range(pool, C * stride)
         with frame.timings_scope("clustered_assign"):
             cs = shader_library(ctx).compute(
-                "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
+                "clustered_assign.comp",
+                walk_defines({"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}, pos_range),
             )
             light_ssbo(frame).bind_to_storage_buffer(SSBO_LIGHTS)
             headers.bind_to_storage_buffer(BIND_HEADERS)
@@ -247,7 +267,7 @@ class ClusteredLighting(LightingMethod):
             cull_uniforms(cs, frame)
             cs.run(gx, gy, gz)
             ctx.memory_barrier()
-        return headers, lists
+        return headers, lists, pos_range
 
     def release(self) -> None:
         if self.pool is not None:
