@@ -36,7 +36,7 @@ class ReachStats:
     def summary(self, limit: float = 0.10) -> dict[str, float]:
         """Median / p95 / max / mean of both fractions (as fractions), how many lights
         exceed ``limit``, and the reached lights per pixel (mean / p95 / max)."""
-        out: dict[str, float] = {"lights": int(len(self.reach))}
+        out: dict[str, float] = {"lights": len(self.reach)}
         for name, v in (("reach", self.reach), ("cover", self.cover)):
             if len(v) == 0:
                 continue
