@@ -369,11 +369,13 @@ TILED_TILE_PX = 16
 #: Default per-tile light-list cap: 64, as Unity HDRP's FPTL. Lights past it are dropped
 #: (and counted): the flickering-tile artefact of capped tiled lighting.
 TILED_CAP_DEFAULT = 64
-#: Culling invocations per tile / cluster workgroup: one light per invocation per step,
-#: list order kept with two 32-bit ballot words (so at most 64).
+#: Culling invocations per tile / cluster workgroup (tiled_cull.comp; one shared hit
+#: mask word each).
 CULL_GROUP_SIZE = 64
-#: Shared-memory hit-mask words of tiled_cull.comp: one bit per thread of a group.
-CULL_MASK_WORDS = (CULL_GROUP_SIZE + 31) // 32
+#: Lights each invocation of the cull kernel tests per batch, into one 32-bit hit mask
+#: (<= 32): a batch of CULL_GROUP_SIZE x this many lights costs the workgroup four
+#: barriers, which llvmpipe runs as switches between its invocations.
+CULL_LIGHTS_PER_INVOCATION = 32
 
 #: Most light-list entries (light x tile/cluster pairs) one frame may store: 32 Mi uint32
 #: = 128 MiB of SSBO. Uncapped lists of huge lights over many cells past this get a

@@ -231,7 +231,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_FOOTPRINT_BINS": str(limits.SHADOW_FOOTPRINT_BINS),
         "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
-        "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),
+        "LIM_CULL_LIGHTS_PER_INVOCATION": str(limits.CULL_LIGHTS_PER_INVOCATION),
         "LIM_CUBE_FACES": str(limits.CUBE_FACES),
         "LIM_RECT_TEXTURES": str(limits.MAX_RECT_TEXTURES),
         "LIM_RECT_TEXTURE_GRID": str(limits.RECT_TEXTURE_GRID),

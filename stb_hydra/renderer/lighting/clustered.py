@@ -165,16 +165,34 @@ class ClusteredLighting(LightingMethod):
         self.pool: SSBOPool | None = None
         self.grid: ClusterGrid | None = None
         self.lists: CellLists | None = None
+        #: What the CPU lists were built from (grid, view, light positions and ranges);
+        #: the same next frame -> the same lists, kept and not uploaded again.
+        self._lists_key: tuple | None = None
+        self._lists_uploaded = False
 
     def prepare(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
+            self.lists, self._lists_key = None, None
             return
         grid, vp = frame_grid(self.delegate, frame, self.o)
         self.grid = grid
-        self.lists = None
         if self.o["assign"] != "cpu":
+            self.lists = None
             return
         pos, rng = fov_lights(self.delegate, frame)
+        key = (
+            grid,
+            vp.view.tobytes(),
+            vp.tan_half,
+            vp.offset,
+            vp.near,
+            vp.orthographic,
+            pos.tobytes(),
+            rng.tobytes(),
+        )
+        if self.lists is not None and key == self._lists_key:
+            return  # a still camera and lights: last frame's lists (and upload) hold
+        self._lists_key, self._lists_uploaded = key, False
         bins = bin_lights(grid, vp, pos, rng)
         C = grid.count
         cap = self.o["cap"]
@@ -199,16 +217,22 @@ class ClusteredLighting(LightingMethod):
         C = grid.count
         pos_range: moderngl.Buffer | None
         if self.lists is not None:
-            with frame.timings_scope("clustered_upload"):
-                L = self.lists
-                hdr = np.empty((C, 2), dtype=np.uint32)
-                hdr[:, 0], hdr[:, 1] = L.offset, L.count
-                headers = self.pool.upload("headers", hdr, BIND_HEADERS)
-                lists = self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
-                # each entry's pos_range, the light buffer's own floats (the walk's test)
-                assert self.delegate is not None and self.delegate.fov_pos_range is not None
-                pr = self.delegate.fov_pos_range[L.light]
-                pos_range = self.pool.upload("entry_pos_range", pr, SSBO_CELL_POS_RANGE)
+            L = self.lists
+            if not self._lists_uploaded:
+                with frame.timings_scope("clustered_upload"):
+                    hdr = np.empty((C, 2), dtype=np.uint32)
+                    hdr[:, 0], hdr[:, 1] = L.offset, L.count
+                    self.pool.upload("headers", hdr, BIND_HEADERS)
+                    self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
+                    # each entry's pos_range, the light buffer's floats (the walk's test)
+                    assert self.delegate is not None
+                    assert self.delegate.fov_pos_range is not None
+                    pr = self.delegate.fov_pos_range[L.light]
+                    self.pool.upload("entry_pos_range", pr, SSBO_CELL_POS_RANGE)
+                self._lists_uploaded = True
+            headers = self.pool.buffers["headers"]
+            lists = self.pool.buffers["lists"]
+            pos_range = self.pool.buffers["entry_pos_range"]
             frame.stats["dropped_lights"] = int(L.dropped)
             frame.stats["list_entries"] = int(L.entries)
             frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
@@ -270,6 +294,7 @@ class ClusteredLighting(LightingMethod):
         return headers, lists, pos_range
 
     def release(self) -> None:
+        self.lists, self._lists_key, self._lists_uploaded = None, None, False
         if self.pool is not None:
             self.pool.release()
             self.pool = None
