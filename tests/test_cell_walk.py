@@ -98,7 +98,7 @@ def _scene(n: int = 60) -> str:
     return "".join(s)
 
 
-def _image(eng: Engine) -> np.ndarray:
+def _image(eng: Engine) -> bytes:
     return eng.render_frame().buffers.textures["lighting"].read()
 
 

@@ -1,6 +1,7 @@
 """`clustered`: practical clustered shading (Persson 2013, Just Cause 3).
 
-A 2.5D grid in view space: ``tile`` px screen tiles (default 64) x depth cells -- a
+A 2.5D grid in view space: ``tile`` px screen tiles (default 16: tiled's; Persson's 64
+made each pixel walk a 4x4 tiles' list on llvmpipe) x depth cells -- a
 near slice ``[0, near_split)`` then ``slices`` exponential slices (default 16) up to
 ``far``; deeper pixels use the last slice. ``near_split``/``far`` default to the
 scene's geometry bounds seen from the camera (``light_tree_build.auto_depth_range``).
@@ -16,7 +17,10 @@ Light assignment (``assign``):
   bounds).
 
 Shading (``clustered_lighting.frag``): the pixel's cluster from its tile and the slice
-of its view depth, then the reference light loop over the list (per-pixel shadows).
+of its view depth, then the reference light loop over the list (per-pixel shadows);
+each list entry carries its light's ``pos_range`` for the walk's range test. The CPU
+lists (and their upload) are kept while the grid, view and lights' positions and ranges
+are unchanged.
 ``cap`` (default none) keeps at most that many lights per cluster (lowest FoV indices;
 drops counted in ``frame.stats["dropped_lights"]``). Without a cap the image equals
 ``reference``.
