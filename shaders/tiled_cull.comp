@@ -1,11 +1,12 @@
 // Light culling for `tiled` (Andersson 2009) and, with CLUSTERED defined, the GPU
 // light assignment of `clustered` (Persson 2013). One workgroup per cell (a 16 px
 // tile, or a cluster = tile x depth slice); its CULL_GROUP_SIZE invocations test the
-// FoV lights in steps of CULL_GROUP_SIZE (one light each) against the cell: the four
+// FoV lights (LIM_CULL_LIGHTS_PER_INVOCATION consecutive ones each) against the cell: the four
 // side planes of the tile's frustum (through its pixel edges) and its depth range
 // (tiled: the tile's min/max depth from the depth pyramid; clustered: the slice).
-// Hits are compacted in light order (two ballot words + bitCount), so a capped list
-// keeps the lowest FoV indices and the sums run in the reference's order.
+// Hits are compacted in light order (a mask word per invocation of 32 consecutive
+// lights + bitCount), so a capped list keeps the lowest FoV indices and the sums run
+// in the reference's order.
 // Output: cell header (first entry, kept count), entries, the uncapped total per
 // cell, and frame counters (dropped light-cell pairs, cells over the cap, max total,
 // entries kept).
@@ -15,6 +16,10 @@ layout(local_size_x = CULL_GROUP_SIZE) in;
 
 layout(std430, binding = SSBO_CELL_HEADERS) writeonly buffer CellHeaders { uvec2 cell_header[]; };
 layout(std430, binding = SSBO_CELL_LISTS) writeonly buffer CellLights { uint cell_lights[]; };
+#ifdef CELL_POS_RANGE
+// each kept entry's light pos_range beside its index (tiled_lighting.frag's walk)
+layout(std430, binding = SSBO_CELL_POS_RANGE) writeonly buffer CellPosRange { vec4 cell_pos_range[]; };
+#endif
 layout(std430, binding = SSBO_CELL_EXTRA) buffer CullStats {
     uint stat_dropped;      // light-cell pairs past the cap
     uint stat_cells_over;   // cells whose list overflowed
@@ -36,7 +41,7 @@ uniform vec4 u_slices;         // near_split, far, slices, slices / ln(far / nea
 layout(binding = TEX_UNIT_HIZ) uniform sampler2D u_hiz;  // rg32f (min, max) depth, one texel per tile
 #endif
 
-shared uint s_mask[LIM_CULL_MASK_WORDS];
+shared uint s_word[CULL_GROUP_SIZE];  // one hit mask per invocation
 shared uint s_count;
 
 // Inside-distance of a view-space point to the side plane through the screen line
@@ -74,43 +79,55 @@ void main() {
     vec2 a0 = (p0 * u_resolution.zw * 2.0 - 1.0) * u_tan_off.xy + u_tan_off.zw;
     vec2 a1 = (p1 * u_resolution.zw * 2.0 - 1.0) * u_tan_off.xy + u_tan_off.zw;
 
-    if (t == 0u) {
-        s_count = 0u;
-        for (uint w = 0u; w < uint(LIM_CULL_MASK_WORDS); ++w) s_mask[w] = 0u;
-    }
+    if (t == 0u) s_count = 0u;
     memoryBarrierShared();
     barrier();
+    // Each invocation tests LIM_CULL_LIGHTS_PER_INVOCATION consecutive lights into one
+    // mask word, so a batch of CULL_GROUP_SIZE words takes four barriers for
+    // CULL_GROUP_SIZE x 32 lights (llvmpipe runs a barrier as a switch between the
+    // group's invocations: one batch of 64 lights per four barriers cost ~8 ms a frame
+    // at 5,000 lights and 60 tiles). Ranks: the hits in the words below, then the bits
+    // below in the own word -- light order, as before.
     uint n = dmax >= dmin ? u_counts.x : 0u;  // empty (background-only) tile: nothing
-    for (uint base = 0u; base < n; base += uint(CULL_GROUP_SIZE)) {
-        uint i = base + t;
-        bool hit = false;
-        if (i < n) {
+    const uint per = uint(LIM_CULL_LIGHTS_PER_INVOCATION);
+    for (uint base = 0u; base < n; base += uint(CULL_GROUP_SIZE) * per) {
+        uint first = base + t * per;
+        uint word = 0u;
+        for (uint j = 0u; j < per; ++j) {
+            uint i = first + j;
+            if (i >= n) break;
             vec4 pr = lights[i].pos_range;
             vec3 c = (u_view * vec4(pr.xyz, 1.0)).xyz;
             float d = -c.z;
             float r0 = pr.w * u_radius_scale;
             float r = r0 * m + u_depth_margin * (abs(d) + r0);
-            hit = d + r >= dmin && d - r <= dmax
+            bool hit = d + r >= dmin && d - r <= dmax
                 && side_distance(c.x, d, a0.x, 1.0) >= -r
                 && side_distance(c.x, d, a1.x, -1.0) >= -r
                 && side_distance(c.y, d, a0.y, 1.0) >= -r
                 && side_distance(c.y, d, a1.y, -1.0) >= -r;
+            if (hit) word |= 1u << j;
         }
-        if (hit) atomicOr(s_mask[t >> 5], 1u << (t & 31u));
+        s_word[t] = word;
         memoryBarrierShared();
         barrier();
-        // rank among this batch's hits: the set bits below thread t in the group mask
-        uint before = uint(bitCount(s_mask[t >> 5] & ((1u << (t & 31u)) - 1u)));
-        for (uint w = 0u; w < (t >> 5); ++w) before += uint(bitCount(s_mask[w]));
-        uint rank = s_count + before;
-        if (hit && rank < u_cap) cell_lights[cell * u_stride + rank] = i;
+        uint rank = s_count;
+        for (uint w = 0u; w < t; ++w) rank += uint(bitCount(s_word[w]));
+        uint bits = word;
+        while (bits != 0u && rank < u_cap) {
+            uint j = uint(findLSB(bits));
+            bits &= bits - 1u;
+            uint i = first + j;
+            cell_lights[cell * u_stride + rank] = i;
+#ifdef CELL_POS_RANGE
+            cell_pos_range[cell * u_stride + rank] = lights[i].pos_range;
+#endif
+            ++rank;
+        }
         memoryBarrierShared();
         barrier();
         if (t == 0u) {
-            for (uint w = 0u; w < uint(LIM_CULL_MASK_WORDS); ++w) {
-                s_count += uint(bitCount(s_mask[w]));
-                s_mask[w] = 0u;
-            }
+            for (uint w = 0u; w < uint(CULL_GROUP_SIZE); ++w) s_count += uint(bitCount(s_word[w]));
         }
         memoryBarrierShared();
         barrier();

@@ -11,6 +11,9 @@
 
 layout(std430, binding = SSBO_CELL_HEADERS) readonly buffer CellHeaders { uvec2 cell_header[]; };
 layout(std430, binding = SSBO_CELL_LISTS) readonly buffer CellLights { uint cell_lights[]; };
+#ifdef CELL_POS_RANGE
+layout(std430, binding = SSBO_CELL_POS_RANGE) readonly buffer CellPosRange { vec4 cell_pos_range[]; };
+#endif
 uniform ivec2 u_grid;      // tiles along x, y
 uniform int u_tile_px;     // tile side (px)
 uniform uint u_point_lights;  // the first u_point_lights lights have no extent
@@ -25,6 +28,18 @@ int depth_slice(float d) {
     return 1 + clamp(j, 0, int(u_slices.z) - 1);
 }
 #endif
+
+// Whether entry e of the lists reaches P: light_reaches (common/lights.glsl) of its
+// light, the same expression on the same floats; with CELL_POS_RANGE read from the
+// entry's own copy of pos_range (one load per step of the walk, not two).
+bool entry_reaches(uint e, vec3 P) {
+#ifdef CELL_POS_RANGE
+    vec4 pr = cell_pos_range[e];
+    return length(pr.xyz - P) < pr.w;
+#else
+    return light_reaches(cell_lights[e], P);
+#endif
+}
 
 #include "common/lighting_out.glsl"
 
@@ -58,7 +73,7 @@ void main() {
     uint k = 0u;
 #ifdef LOOP_POINT
     for (; k < h.y; ++k) {
-        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        while (k < h.y && !entry_reaches(h.x + k, s.P)) ++k;  // SKIP_UNREACHED
         if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_point_lights) break;
@@ -70,7 +85,7 @@ void main() {
 #endif
 #ifdef LOOP_SPHERE_NARROW
     for (; k < h.y; ++k) {  // then the narrow sphere lights (up to u_sphere_end)
-        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        while (k < h.y && !entry_reaches(h.x + k, s.P)) ++k;  // SKIP_UNREACHED
         if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_sphere_end) break;
@@ -82,7 +97,7 @@ void main() {
 #endif
 #ifdef LOOP_SPHERE_WIDE
     for (; k < h.y; ++k) {  // the other sphere lights (up to u_wide_sphere_end)
-        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;  // SKIP_UNREACHED
+        while (k < h.y && !entry_reaches(h.x + k, s.P)) ++k;  // SKIP_UNREACHED
         if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
         if (i >= u_wide_sphere_end) break;
@@ -99,7 +114,7 @@ void main() {
         // it, but leaves a loop once every lane has); so in every loop here. An entry
         // past this loop's model may be stepped over too: it is out of reach, and
         // every later loop would skip it as well.
-        while (k < h.y && !light_reaches(cell_lights[h.x + k], s.P)) ++k;
+        while (k < h.y && !entry_reaches(h.x + k, s.P)) ++k;
         if (k >= h.y) break;
         uint i = cell_lights[h.x + k];
 #ifdef HAS_LINKS

@@ -375,20 +375,33 @@ TILED_TILE_PX = 16
 #: Default per-tile light-list cap: 64, as Unity HDRP's FPTL. Lights past it are dropped
 #: (and counted): the flickering-tile artefact of capped tiled lighting.
 TILED_CAP_DEFAULT = 64
-#: Culling invocations per tile / cluster workgroup: one light per invocation per step,
-#: list order kept with two 32-bit ballot words (so at most 64).
+#: Culling invocations per tile / cluster workgroup (tiled_cull.comp; one shared hit
+#: mask word each).
 CULL_GROUP_SIZE = 64
-#: Shared-memory hit-mask words of tiled_cull.comp: one bit per thread of a group.
-CULL_MASK_WORDS = (CULL_GROUP_SIZE + 31) // 32
+#: Lights each invocation of the cull kernel tests per batch, into one 32-bit hit mask
+#: (<= 32): a batch of CULL_GROUP_SIZE x this many lights costs the workgroup four
+#: barriers, which llvmpipe runs as switches between its invocations.
+CULL_LIGHTS_PER_INVOCATION = 32
 
 #: Most light-list entries (light x tile/cluster pairs) one frame may store: 32 Mi uint32
 #: = 128 MiB of SSBO. Uncapped lists of huge lights over many cells past this get a
 #: uniform per-cell cap (drops counted, one warning) instead of an allocation failure.
 GRID_MAX_LIST_ENTRIES = 32 * 1024 * 1024
+#: tiled / clustered (GPU assignment): most bytes of the per-entry ``pos_range`` copies
+#: (16 B an entry, sized like the lists: cells x list stride) that let the shading's
+#: list walk read one vec4 per step; past it the walk reads the light buffer instead
+#: (same image, slower). CPU-built clustered lists are exact-size and always have it.
+CELL_POS_RANGE_MAX_BYTES = 128 * 1024 * 1024
 
 #: Clustered / light-tree screen tile (px): Persson 2013 uses 64 px tiles; O'Donnell and
-#: Chajdas found 32-64 px the best CPU/GPU trade-off (their 48 px).
+#: Chajdas found 32-64 px the best CPU/GPU trade-off (their 48 px). The light tree's
+#: default.
 CLUSTER_TILE_PX_DEFAULT = 64
+#: `clustered`'s default tile (px): tiled's 16. On llvmpipe a pixel's list walk costs
+#: per entry of its cluster, and a 64 px tile puts 16x the pixels behind each listed
+#: light (issue 34 item C: 5,000 sphere lights at 160x90, CPU time, 0.30x -> 0.24x the
+#: reference; docs/PERFORMANCE.md).
+CLUSTERED_TILE_PX_DEFAULT = 16
 CLUSTER_TILE_PX_RANGE = (8, 256)
 #: Exponential depth slices after the near slice (Persson: 16 incl. the near one; we
 #: add the near slice on top, as the issue asks). 0 = 2D tiles only (tree-only mode).

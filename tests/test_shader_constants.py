@@ -132,6 +132,7 @@ ALL_FEATURES = {
     "STB_K": 64,
     "STB_PIXEL_TERMS": True,
     "CULL_GROUP_SIZE": 64,
+    "CELL_POS_RANGE": True,  # tiled / clustered lists with each entry's pos_range
 }
 _VERTEX_OF = {
     "gbuffer.frag": "gbuffer.vert",

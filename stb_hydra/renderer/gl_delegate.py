@@ -483,6 +483,13 @@ class GLRenderDelegate(RenderDelegate):
         return vao
 
     # -- lights --
+    @property
+    def fov_pos_range(self) -> np.ndarray | None:
+        """(n, 4) float32 ``pos_range`` (world position, m; range, m) of the uploaded
+        in-view light records, in light-buffer order: the SSBO's own floats (None before
+        the first upload)."""
+        return None if self._fov_packed is None else self._fov_packed[:, 0:4]
+
     def upload_lights(self, rows: np.ndarray, maps: np.ndarray | None) -> bool:
         """Upload the packed light buffer of ``rows`` (light-table rows in SSBO order)
         with shadow-map slots ``maps`` (per row, -1 = none; None = shadows off) if the

@@ -59,6 +59,9 @@ SSBO_STB_REUSE_REMAP = 10
 #: angular span) in; the needed map side per light (float bits, atomicMax) out.
 SSBO_FOOTPRINT_LIGHTS = 11
 SSBO_FOOTPRINT_OUT = 12
+#: tiled / clustered shading (``CELL_POS_RANGE``): each list entry's light
+#: ``pos_range`` (vec4, the light buffer's floats), parallel to ``SSBO_CELL_LISTS``.
+SSBO_CELL_POS_RANGE = 13
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -228,7 +231,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_FOOTPRINT_BINS": str(limits.SHADOW_FOOTPRINT_BINS),
         "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
-        "LIM_CULL_MASK_WORDS": str(limits.CULL_MASK_WORDS),
+        "LIM_CULL_LIGHTS_PER_INVOCATION": str(limits.CULL_LIGHTS_PER_INVOCATION),
         "LIM_CUBE_FACES": str(limits.CUBE_FACES),
         "LIM_RECT_TEXTURES": str(limits.MAX_RECT_TEXTURES),
         "LIM_RECT_TEXTURE_GRID": str(limits.RECT_TEXTURE_GRID),
@@ -249,6 +252,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_REUSE_REMAP": str(SSBO_STB_REUSE_REMAP),
         "SSBO_FOOTPRINT_LIGHTS": str(SSBO_FOOTPRINT_LIGHTS),
         "SSBO_FOOTPRINT_OUT": str(SSBO_FOOTPRINT_OUT),
+        "SSBO_CELL_POS_RANGE": str(SSBO_CELL_POS_RANGE),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),

@@ -135,13 +135,20 @@ def lights_scene_usda(
     lumens: tuple[float, float] = (100.0, 2000.0),
     anchor_dir: Path | str | None = None,
     ies_dir: Path | str | None = None,
+    light_range: float | None = None,
 ) -> str:
-    """The scene as .usda text. ``anchor_dir``: directory the file will live in (IES
+    """The scene as .usda text. ``light_range``: an influence radius (m) authored on
+    every light (``stb:range``) instead of the automatic one, which follows each light's
+    peak intensity at the camera's exposure (an IES beam's peak is 10-50x a sphere's of
+    the same flux, so its sphere of influence reaches far to the sides as well); None
+    keeps the automatic range. ``anchor_dir``: directory the file will live in (IES
     paths are written relative to it); None writes absolute IES paths. ``ies_dir``:
     folder of the ``<profile>.ies`` files (default: the checkout's usd_scenes/ies;
     only needed when ``types`` includes ``ies``)."""
     if n_lights < 1:
         raise ValueError("need at least one light")
+    if light_range is not None and not (math.isfinite(light_range) and light_range > 0):
+        raise ValueError(f"light_range must be a positive number of metres, got {light_range}")
     if not 0 <= animated <= n_lights:
         raise ValueError("--animated must be between 0 and --lights")
     types = _parse_types(types)
@@ -279,6 +286,7 @@ def lights_scene_usda(
                         if moving[i]
                         else None,
                         sample_frames,
+                        light_range,
                     )
                 )
             w.raw("".join(parts).rstrip("\n"))
@@ -330,6 +338,7 @@ def _light_text(
     pos,
     path,
     frames,
+    light_range=None,
 ) -> str:
     token = TYPE_TOKENS[t]
     schemas = (["ShapingAPI"] if t in ("spot", "ies") else []) + ["ShadowAPI"]
@@ -369,6 +378,8 @@ def _light_text(
             f"{p2}bool inputs:shaping:ies:normalize = 1\n"
         )
     out.append(f"{p2}bool inputs:shadow:enable = {1 if shadow else 0}\n")
+    if light_range is not None:
+        out.append(f"{p2}float stb:range = {light_range:g}\n")
     if dyn:
         out.append(f'{p2}uniform token stb:shadow:update = "dynamic"\n')
     order = ['"xformOp:translate"']
@@ -463,6 +474,12 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="folder of the IES profiles (default: the package's stb_hydra/data/ies)",
     )
+    ap.add_argument(
+        "--light-range",
+        type=float,
+        default=None,
+        help="influence radius (m) authored on every light (default: automatic)",
+    )
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
@@ -479,6 +496,7 @@ def main(argv: list[str] | None = None) -> int:
             lumens=tuple(args.lumens),
             anchor_dir=args.out.resolve().parent,
             ies_dir=args.ies_dir,
+            light_range=args.light_range,
         )
     except (ValueError, FileNotFoundError) as e:
         ap.error(str(e))

@@ -1,6 +1,7 @@
 """`clustered`: practical clustered shading (Persson 2013, Just Cause 3).
 
-A 2.5D grid in view space: ``tile`` px screen tiles (default 64) x depth cells -- a
+A 2.5D grid in view space: ``tile`` px screen tiles (default 16: tiled's; Persson's 64
+made each pixel walk a 4x4 tiles' list on llvmpipe) x depth cells -- a
 near slice ``[0, near_split)`` then ``slices`` exponential slices (default 16) up to
 ``far``; deeper pixels use the last slice. ``near_split``/``far`` default to the
 scene's geometry bounds seen from the camera (``light_tree_build.auto_depth_range``).
@@ -16,7 +17,10 @@ Light assignment (``assign``):
   bounds).
 
 Shading (``clustered_lighting.frag``): the pixel's cluster from its tile and the slice
-of its view depth, then the reference light loop over the list (per-pixel shadows).
+of its view depth, then the reference light loop over the list (per-pixel shadows);
+each list entry carries its light's ``pos_range`` for the walk's range test. The CPU
+lists (and their upload) are kept while the grid, view and lights' positions and ranges
+are unchanged.
 ``cap`` (default none) keeps at most that many lights per cluster (lowest FoV indices;
 drops counted in ``frame.stats["dropped_lights"]``). Without a cap the image equals
 ``reference``.
@@ -32,7 +36,7 @@ import numpy as np
 from ... import limits
 from ..gl import set_uniform, shader_library
 from ..records import InViewLights
-from ..shader_constants import SSBO_LIGHTS
+from ..shader_constants import SSBO_CELL_POS_RANGE, SSBO_LIGHTS
 from .base import LightingMethod, Warn, program
 from .light_tree_build import (
     CellLists,
@@ -50,25 +54,35 @@ from .tiled import (
     SSBOPool,
     cell_count_stats,
     cull_uniforms,
+    entry_pos_range,
     light_ssbo,
     parse_cap,
     read_stats,
     read_totals,
     shade_direct,
+    walk_defines,
 )
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
     from ..gl_delegate import GLRenderDelegate
 
-GRID_OPTIONS = Schema(
-    Opt(
-        "tile",
-        int,
-        limits.CLUSTER_TILE_PX_DEFAULT,
-        range=limits.CLUSTER_TILE_PX_RANGE,
-        doc="screen tile size of the grid, px",
-    ),
+
+def grid_options(tile_default: int) -> Schema:
+    """The grid's options (clustered, light tree) with ``tile_default`` px tiles."""
+    return Schema(
+        Opt(
+            "tile",
+            int,
+            tile_default,
+            range=limits.CLUSTER_TILE_PX_RANGE,
+            doc="screen tile size of the grid, px",
+        ),
+        *DEPTH_OPTIONS,
+    )
+
+
+DEPTH_OPTIONS = (
     Opt(
         "slices",
         int,
@@ -85,7 +99,9 @@ GRID_OPTIONS = Schema(
     ),
     Opt("far", float, None, nullable=True, doc="far end of the grid, m (none: scene bounds)"),
 )
-OPTIONS = GRID_OPTIONS + Schema(
+#: The light tree's grid (Persson's 64 px tiles).
+GRID_OPTIONS = grid_options(limits.CLUSTER_TILE_PX_DEFAULT)
+OPTIONS = grid_options(limits.CLUSTERED_TILE_PX_DEFAULT) + Schema(
     Opt("assign", str, "cpu", choices=("cpu", "gpu"), doc="light assignment on CPU or GPU"),
     Opt("cap", int, None, nullable=True, doc="most lights per cluster (none: no cap)"),
 )
@@ -153,16 +169,34 @@ class ClusteredLighting(LightingMethod):
         self.pool: SSBOPool | None = None
         self.grid: ClusterGrid | None = None
         self.lists: CellLists | None = None
+        #: What the CPU lists were built from (grid, view, light positions and ranges);
+        #: the same next frame -> the same lists, kept and not uploaded again.
+        self._lists_key: tuple | None = None
+        self._lists_uploaded = False
 
     def prepare(self, frame: FrameContext) -> None:
         if frame.light_count == 0:
+            self.lists, self._lists_key = None, None
             return
         grid, vp = frame_grid(self.delegate, frame, self.o)
         self.grid = grid
-        self.lists = None
         if self.o["assign"] != "cpu":
+            self.lists = None
             return
         pos, rng = fov_lights(self.delegate, frame)
+        key = (
+            grid,
+            vp.view.tobytes(),
+            vp.tan_half,
+            vp.offset,
+            vp.near,
+            vp.orthographic,
+            pos.tobytes(),
+            rng.tobytes(),
+        )
+        if self.lists is not None and key == self._lists_key:
+            return  # a still camera and lights: last frame's lists (and upload) hold
+        self._lists_key, self._lists_uploaded = key, False
         bins = bin_lights(grid, vp, pos, rng)
         C = grid.count
         cap = self.o["cap"]
@@ -185,22 +219,34 @@ class ClusteredLighting(LightingMethod):
         grid = self.grid
         assert grid is not None  # prepare made it (lights in view)
         C = grid.count
+        pos_range: moderngl.Buffer | None
         if self.lists is not None:
-            with frame.timings_scope("clustered_upload"):
-                L = self.lists
-                hdr = np.empty((C, 2), dtype=np.uint32)
-                hdr[:, 0], hdr[:, 1] = L.offset, L.count
-                headers = self.pool.upload("headers", hdr, BIND_HEADERS)
-                lists = self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
+            L = self.lists
+            if not self._lists_uploaded:
+                with frame.timings_scope("clustered_upload"):
+                    hdr = np.empty((C, 2), dtype=np.uint32)
+                    hdr[:, 0], hdr[:, 1] = L.offset, L.count
+                    self.pool.upload("headers", hdr, BIND_HEADERS)
+                    self.pool.upload("lists", L.light.astype(np.uint32), BIND_LISTS)
+                    # each entry's pos_range, the light buffer's floats (the walk's test)
+                    assert self.delegate is not None
+                    assert self.delegate.fov_pos_range is not None
+                    pr = self.delegate.fov_pos_range[L.light]
+                    self.pool.upload("entry_pos_range", pr, SSBO_CELL_POS_RANGE)
+                self._lists_uploaded = True
+            headers = self.pool.buffers["headers"]
+            lists = self.pool.buffers["lists"]
+            pos_range = self.pool.buffers["entry_pos_range"]
             frame.stats["dropped_lights"] = int(L.dropped)
             frame.stats["list_entries"] = int(L.entries)
             frame.stats["max_cell_lights"] = int(L.total.max()) if C else 0
             frame.stats.update(cell_count_stats(L.total, frame.light_count))
         else:
-            headers, lists = self._assign_gpu(frame, grid, self.pool)
+            headers, lists, pos_range = self._assign_gpu(frame, grid, self.pool)
 
         with frame.timings_scope("clustered_shade"):
-            prog = program(frame, "clustered_lighting.frag", self.lighting_defines(frame))
+            defines = walk_defines(self.lighting_defines(frame), pos_range)
+            prog = program(frame, "clustered_lighting.frag", defines)
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
@@ -216,7 +262,7 @@ class ClusteredLighting(LightingMethod):
 
     def _assign_gpu(
         self, frame: FrameContext, grid: ClusterGrid, pool: SSBOPool
-    ) -> tuple[moderngl.Buffer, moderngl.Buffer]:
+    ) -> tuple[moderngl.Buffer, moderngl.Buffer, moderngl.Buffer | None]:
         ctx = frame.ctx
         gx, gy, gz = grid.dims
         C = grid.count
@@ -233,9 +279,11 @@ class ClusteredLighting(LightingMethod):
         stats = pool.get("stats", 16 + C * 4)
         stats.write(np.zeros(4, dtype=np.uint32).tobytes())
         self._stats = stats
+        pos_range = entry_pos_range(pool, C * stride)
         with frame.timings_scope("clustered_assign"):
             cs = shader_library(ctx).compute(
-                "clustered_assign.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
+                "clustered_assign.comp",
+                walk_defines({"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}, pos_range),
             )
             light_ssbo(frame).bind_to_storage_buffer(SSBO_LIGHTS)
             headers.bind_to_storage_buffer(BIND_HEADERS)
@@ -247,9 +295,10 @@ class ClusteredLighting(LightingMethod):
             cull_uniforms(cs, frame)
             cs.run(gx, gy, gz)
             ctx.memory_barrier()
-        return headers, lists
+        return headers, lists, pos_range
 
     def release(self) -> None:
+        self.lists, self._lists_key, self._lists_uploaded = None, None, False
         if self.pool is not None:
             self.pool.release()
             self.pool = None

@@ -5,7 +5,10 @@
    through its pixel edges and the tile's min/max view depth from the depth pyramid
    (level 4) -- and compacts the hits, in FoV order, into the tile's list.
 2. Shading (``tiled_lighting.frag``): per pixel the reference light loop over its
-   tile's list, with per-pixel shadows (``local_shadow``) for every listed light.
+   tile's list, with per-pixel shadows (``local_shadow``) for every listed light. The
+   cull also copies each kept entry's ``pos_range`` beside its index (within
+   ``limits.CELL_POS_RANGE_MAX_BYTES``), so the walk over the list's entries out of
+   the pixel's reach reads one vec4 a step instead of an index and then a record.
 
 The list holds at most ``tile_cap`` lights (default 64, as Unity HDRP's FPTL; ``None``
 / ``"none"`` / 0 = no cap). Lights past the cap are dropped -- the lowest FoV indices
@@ -33,6 +36,7 @@ from ..shader_constants import (
     SSBO_CELL_EXTRA,
     SSBO_CELL_HEADERS,
     SSBO_CELL_LISTS,
+    SSBO_CELL_POS_RANGE,
     SSBO_LIGHTS,
     TEX_UNIT_HIZ,
 )
@@ -101,6 +105,26 @@ class SSBOPool:
         for b in self.buffers.values():
             b.release()
         self.buffers.clear()
+
+
+def entry_pos_range(pool: SSBOPool, entries: int) -> moderngl.Buffer | None:
+    """The per-entry ``pos_range`` buffer of GPU-built lists (``entries`` = cells x
+    list stride; the cull kernel fills it beside the indices, ``CELL_POS_RANGE``), or
+    None past ``limits.CELL_POS_RANGE_MAX_BYTES`` (the walk then reads the light
+    buffer: same image)."""
+    nbytes = 16 * int(entries)
+    if nbytes > limits.CELL_POS_RANGE_MAX_BYTES:
+        return None
+    return pool.get("entry_pos_range", nbytes)
+
+
+def walk_defines(defines: dict[str, object], pos_range: moderngl.Buffer | None) -> dict:
+    """Shading / cull defines with ``CELL_POS_RANGE`` when the lists carry each entry's
+    ``pos_range`` (bound at ``SSBO_CELL_POS_RANGE``)."""
+    if pos_range is None:
+        return defines
+    pos_range.bind_to_storage_buffer(SSBO_CELL_POS_RANGE)
+    return {**defines, "CELL_POS_RANGE": True}
 
 
 def shade_direct(method: LightingMethod, frame: FrameContext) -> None:
@@ -210,10 +234,12 @@ class TiledLighting(LightingMethod):
         stats = self.pool.get("stats", 16 + tiles * 4)
         stats.write(np.zeros(4, dtype=np.uint32).tobytes())
         self.stats_buffer, self.tiles = stats, (gx, gy)
+        pos_range = entry_pos_range(self.pool, tiles * stride)
 
         with frame.timings_scope("tiled_cull"):
             cs = shader_library(ctx).compute(
-                "tiled_cull.comp", {"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}
+                "tiled_cull.comp",
+                walk_defines({"CULL_GROUP_SIZE": limits.CULL_GROUP_SIZE}, pos_range),
             )
             light_ssbo(frame).bind_to_storage_buffer(SSBO_LIGHTS)
             headers.bind_to_storage_buffer(BIND_HEADERS)
@@ -231,7 +257,8 @@ class TiledLighting(LightingMethod):
             ctx.memory_barrier()
 
         with frame.timings_scope("tiled_shade"):
-            prog = program(frame, "tiled_lighting.frag", self.lighting_defines(frame))
+            defines = walk_defines(self.lighting_defines(frame), pos_range)
+            prog = program(frame, "tiled_lighting.frag", defines)
             self.bind_common(frame, prog)
             headers.bind_to_storage_buffer(BIND_HEADERS)
             lists.bind_to_storage_buffer(BIND_LISTS)
