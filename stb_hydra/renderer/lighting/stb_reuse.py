@@ -13,6 +13,11 @@ STB's small-tile candidates, replacing the term and lighting passes.
    generalized balance heuristic: unbiased); the chosen light is shaded with its term
    (shadow x cone x IES) evaluated at the pixel, so shadowed candidates add nothing;
    the final reservoir and the pixel's surface are stored for the next frame.
+3. Fused (``reuse_candidates`` > 0, k = 0): one shading pass computes the reservoir
+   too, shading picks that light_reflect shades by its point model; a pick that needs
+   the area path (polygon, LTC) is listed and ``stb_reuse_area.frag`` shades the list,
+   eight listed pixels to an llvmpipe stamp (``common/reuse_area.glsl``: the same
+   image, without the area code in every stamp of the first pass).
 
 Reservoirs: rgba32ui (light index in the frame's FoV list, bits of W, M and the stored
 target), full resolution. The history (two reservoir and two surface textures, ping-
