@@ -65,9 +65,9 @@ CURRENT = "stb_reuse_cur"
 #: Ping-ponged history: reservoirs and surfaces (linear depth m, oct normal, roughness).
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
-#: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
 #: The fused pass's listed pixels' sun + ambient radiance (``stb_reuse_area.frag``).
 PARTIAL = "stb_reuse_partial"
+#: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
 SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_axis")
 SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_axis")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
@@ -366,7 +366,6 @@ class ReuseStage:
         method.bind_common(frame, prog)
         set_uniform(prog, "u_list_width", w)
         set_uniform(prog, "u_vis_reuse", 1 if method.o["reuse_visibility"] else 0)
-        set_uniform(prog, "u_eps", float(method.o["eps"]))
         hist.bind_to_image(IMAGE_UNIT_REUSE_RESERVOIR, read=True, write=True)
         bufs.textures[PARTIAL].bind_to_image(IMAGE_UNIT_REUSE_PARTIAL, read=True, write=False)
         bufs.textures["lighting"].bind_to_image(IMAGE_UNIT_REUSE_OUT_COLOR, read=False, write=True)
