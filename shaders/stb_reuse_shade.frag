@@ -14,6 +14,8 @@
 //   as the term pass computes it, at full resolution): the target is unshadowed, so
 //   shadowed candidates are shaded with their zero term and add nothing.
 // * Shading: sun, ambient and emission as stb_lighting.frag, plus f(y) x W.
+// * STB_REUSE_AREA_PASS (fused only): picks that need light_reflect's area path are
+//   listed and shaded by stb_reuse_area.frag instead (common/reuse_area.glsl).
 // * STB_REUSE_FUSED (reuse_candidates > 0, pixel resolution, k = 0, no temporal reuse
 //   this frame): the pass computes the pixel's initial reservoir itself
 //   (common/reuse_initial.glsl) instead of reading the temporal pass's: one full-screen
@@ -32,6 +34,7 @@
 #include "common/reservoir.glsl"
 #include "common/reuse_target.glsl"
 #include "common/reuse_geometry.glsl"
+#include "common/reuse_area.glsl"
 #include "common/lighting_out.glsl"
 #ifdef STB_REUSE_FUSED
 #include "common/reuse_initial.glsl"
@@ -62,11 +65,10 @@ ivec2 reuse_texel(ivec2 px) {
 #endif
 }
 
-// Shadow x cone x normalised IES of light L at P (stb_shadow.frag's sample_term).
-float reuse_term(Light L, vec3 P, vec3 N) {
-    vec3 Ldir = normalize(L.pos_range.xyz - P);
-    return clamp(light_shape_scalar(L, -Ldir) * luminance(local_shadow(L, P, N)), 0.0, 1.0);
-}
+#ifdef STB_REUSE_AREA_PASS
+// This pixel's sun + ambient radiance, for stb_reuse_area.frag (listed pixels only).
+layout(rgba32f, binding = IMAGE_UNIT_REUSE_PARTIAL) writeonly uniform image2D u_partial;
+#endif
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
@@ -191,7 +193,18 @@ void main() {
         Light L = lights[fin.y];
         vec3 Ldir, d, sp;
         float term = 0.0;
+#ifdef STB_REUSE_AREA_PASS
+        // light_reflect's point model here; a pick that needs its area path is listed
+        // for stb_reuse_area.frag with this pixel's radiance so far (common/reuse_area.glsl).
+        int how = reuse_point_reflect(L, s, Ldir, d, sp);
+        if (how == REUSE_AREA_PATH) {
+            reuse_area_px[atomicAdd(reuse_area_count, 1u)] = uint(px.x) | (uint(px.y) << 16);
+            imageStore(u_partial, px, vec4(c, 0.0));
+            term = 1.0;  // stb_reuse_area.frag applies u_vis_reuse
+        } else if (how == REUSE_POINT_MODEL) {
+#else
         if (light_reflect(L, s, Ldir, d, sp)) {
+#endif
             term = reuse_term(L, s.P, s.N);
             c += (d * L.misc.z + sp * L.misc.w) * term * fin.W;
         }

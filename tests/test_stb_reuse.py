@@ -437,6 +437,52 @@ def test_no_nan_or_inf(gl_ctx, opts):
         eng.release()
 
 
+#: The configuration of the cost bound (issue 31), its fused pass with the area pass.
+SHARE_TILE = dict(reuse_candidates=64, reuse_k=0, reuse_res="share", reuse_target="tile")
+
+
+@pytest.mark.parametrize(
+    "opts, temporal",
+    [
+        (SHARE_TILE, "off"),
+        (dict(SHARE_TILE, reuse_visibility=True), "taa"),  # the taa inputs, the history
+        ({"reuse_candidates": 32, "reuse_k": 0, "reuse_temporal": "off"}, "off"),  # per pixel
+    ],
+)
+def test_area_pass_changes_no_pixel(gl_ctx, opts, temporal):
+    """The fused pass's compacted area pass (stb_reuse_area.frag) renders bit for bit
+    what light_reflect in the shading pass renders -- colour, taa's inputs through taa,
+    and the reservoir history -- on the bench generator's mix of spheres, spots, IES,
+    disks and rects, where it shades a good part of the pixels."""
+    from stb_hydra.renderer.lighting.stb_reuse import HISTORY
+    from stb_hydra.scenegen.lights import build_lights_stage
+
+    stage = build_lights_stage(n_lights=60, seed=2, shadow_fraction=0.5, size=8.0)
+    imgs, hist, listed = [], [], []
+    for area in (True, False):
+        settings = RenderSettings(
+            width=96,
+            height=54,
+            lighting="stb",
+            temporal=temporal,
+            method_options=dict(REUSE, **opts),
+        )
+        eng = Engine(stage, settings)
+        try:
+            eng.method.reuse.area_pass = area  # type: ignore[attr-defined]
+            for _ in range(3):
+                eng.render(time=1.0)
+            listed.append(eng.method.reuse.last_area_pixels)  # type: ignore[attr-defined]
+            imgs.append(eng.aovs["color"].copy())
+            hist.append([eng.buffers.textures[n].read() for n in HISTORY])
+        finally:
+            eng.release()
+    assert listed[0] > 96 * 54 // 20 and listed[1] == 0, listed
+    assert np.isfinite(imgs[0]).all() and imgs[0][..., :3].max() > 0.0
+    assert np.array_equal(imgs[0], imgs[1])
+    assert hist[0] == hist[1]
+
+
 def test_reuse_with_light_links_is_unbiased(gl_ctx):
     """Light A linked to quad Q1 only (tests/test_links.py's scene): with reuse the
     linked light is never shaded on Q2 -- its target there is 0, so neither the pixel's

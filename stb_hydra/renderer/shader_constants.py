@@ -62,6 +62,9 @@ SSBO_FOOTPRINT_OUT = 12
 #: tiled / clustered shading (``CELL_POS_RANGE``): each list entry's light
 #: ``pos_range`` (vec4, the light buffer's floats), parallel to ``SSBO_CELL_LISTS``.
 SSBO_CELL_POS_RANGE = 13
+#: STB reuse, fused pass: the pixels whose pick needs the area path (count, then
+#: x | y << 16), appended by stb_reuse_shade.frag, read by stb_reuse_area.frag.
+SSBO_STB_REUSE_AREA = 14
 #: Image unit of the depth-pyramid level being written (hiz_minmax.comp).
 IMAGE_UNIT_HIZ_DST = 0
 #: Image unit of STB's full-resolution per-pixel terms of split quads (stb_shadow.frag).
@@ -72,6 +75,12 @@ IMAGE_UNIT_BIGTILE = 2
 #: by the shading pass for the next frame.
 IMAGE_UNIT_REUSE_RESERVOIR = 3
 IMAGE_UNIT_REUSE_SURFACE = 4
+#: STB reuse, fused pass: the listed pixels' sun + ambient radiance (rgba32f), and the
+#: lighting outputs stb_reuse_area.frag writes (lighting, taa_demod, taa_albedo).
+IMAGE_UNIT_REUSE_PARTIAL = 5
+IMAGE_UNIT_REUSE_OUT_COLOR = 6
+IMAGE_UNIT_REUSE_OUT_DEMOD = 7
+IMAGE_UNIT_REUSE_OUT_ALBEDO = 8
 #: Texture unit of the min/max depth pyramid level read by the big-tile pass
 #: (stb_bigtile.frag) and the tile culling (tiled_cull.comp): clear of the units
 #: ``LightingMethod.bind_common`` hands out from 0 (at most 10: G-buffer and its link
@@ -253,11 +262,16 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_FOOTPRINT_LIGHTS": str(SSBO_FOOTPRINT_LIGHTS),
         "SSBO_FOOTPRINT_OUT": str(SSBO_FOOTPRINT_OUT),
         "SSBO_CELL_POS_RANGE": str(SSBO_CELL_POS_RANGE),
+        "SSBO_STB_REUSE_AREA": str(SSBO_STB_REUSE_AREA),
         "IMAGE_UNIT_HIZ_DST": str(IMAGE_UNIT_HIZ_DST),
         "IMAGE_UNIT_PIXEL_TERMS": str(IMAGE_UNIT_PIXEL_TERMS),
         "IMAGE_UNIT_BIGTILE": str(IMAGE_UNIT_BIGTILE),
         "IMAGE_UNIT_REUSE_RESERVOIR": str(IMAGE_UNIT_REUSE_RESERVOIR),
         "IMAGE_UNIT_REUSE_SURFACE": str(IMAGE_UNIT_REUSE_SURFACE),
+        "IMAGE_UNIT_REUSE_PARTIAL": str(IMAGE_UNIT_REUSE_PARTIAL),
+        "IMAGE_UNIT_REUSE_OUT_COLOR": str(IMAGE_UNIT_REUSE_OUT_COLOR),
+        "IMAGE_UNIT_REUSE_OUT_DEMOD": str(IMAGE_UNIT_REUSE_OUT_DEMOD),
+        "IMAGE_UNIT_REUSE_OUT_ALBEDO": str(IMAGE_UNIT_REUSE_OUT_ALBEDO),
         "TEX_UNIT_HIZ": str(TEX_UNIT_HIZ),
         # codes and sentinels
         "PI": repr(math.pi),

@@ -13,6 +13,11 @@ STB's small-tile candidates, replacing the term and lighting passes.
    generalized balance heuristic: unbiased); the chosen light is shaded with its term
    (shadow x cone x IES) evaluated at the pixel, so shadowed candidates add nothing;
    the final reservoir and the pixel's surface are stored for the next frame.
+3. Fused (``reuse_candidates`` > 0, k = 0): one shading pass computes the reservoir
+   too, shading picks that light_reflect shades by its point model; a pick that needs
+   the area path (polygon, LTC) is listed and ``stb_reuse_area.frag`` shades the list,
+   eight listed pixels to an llvmpipe stamp (``common/reuse_area.glsl``: the same
+   image, without the area code in every stamp of the first pass).
 
 Reservoirs: rgba32ui (light index in the frame's FoV list, bits of W, M and the stored
 target), full resolution. The history (two reservoir and two surface textures, ping-
@@ -34,17 +39,23 @@ import numpy as np
 
 from ... import limits
 from ..camera import ViewSetup
+from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform
 from ..graph import Tex
 from ..light_changes import Rule, change_uniforms, light_changes, light_snapshot
 from ..records import InViewLights
 from ..shader_constants import (
+    IMAGE_UNIT_REUSE_OUT_ALBEDO,
+    IMAGE_UNIT_REUSE_OUT_COLOR,
+    IMAGE_UNIT_REUSE_OUT_DEMOD,
+    IMAGE_UNIT_REUSE_PARTIAL,
     IMAGE_UNIT_REUSE_RESERVOIR,
     IMAGE_UNIT_REUSE_SURFACE,
+    SSBO_STB_REUSE_AREA,
     SSBO_STB_REUSE_REMAP,
     TEX_UNIT_HIZ,
 )
-from .base import program
+from .base import TAA_INPUTS, program
 
 if TYPE_CHECKING:
     from ..frame import FrameContext
@@ -54,6 +65,8 @@ CURRENT = "stb_reuse_cur"
 #: Ping-ponged history: reservoirs and surfaces (linear depth m, oct normal, roughness).
 HISTORY = ("stb_reuse_res0", "stb_reuse_res1")
 SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
+#: The fused pass's listed pixels' sun + ambient radiance (``stb_reuse_area.frag``).
+PARTIAL = "stb_reuse_partial"
 #: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
 SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_axis")
 SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_axis")
@@ -68,6 +81,7 @@ def reuse_textures() -> tuple[Tex, ...]:
         *(Tex(n, "rgba32ui") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in SURFACE),
         *(Tex(n, "rgba32f") for n in SLOTS),
+        Tex(PARTIAL, "rgba32f"),
     )
 
 
@@ -105,6 +119,11 @@ CHANGE_EXACT = ("type",)
 class ReuseStage:
     """The reuse passes of one STB method instance and the history they keep."""
 
+    #: Fused pass: shade the picks that need light_reflect's area path in a second,
+    #: compacted pass (``stb_reuse_area.frag``; the same image, bit for bit). False:
+    #: light_reflect in the shading pass itself (tests and timings compare the two).
+    area_pass = True
+
     def __init__(self) -> None:
         self.count = 0  # frames of history (0: none)
         self._parity = 0
@@ -113,12 +132,16 @@ class ReuseStage:
         self._n_rows = -1
         self._size: tuple[int, int] | None = None
         self._remap: moderngl.Buffer | None = None
+        self._area_list: moderngl.Buffer | None = None
+        self._area_fbo: moderngl.Framebuffer | None = None
         self._lights: dict[str, np.ndarray] | None = None
         self._light_version = -1
         #: Why the history was dropped on the last frame ("" = kept).
         self.last_reset = ""
         #: Did the last frame's temporal pass have a history to reuse?
         self.last_history = False
+        #: Pixels the last frame's area pass shaded (0 without one).
+        self.last_area_pixels = 0
 
     def reset(self) -> None:
         """Forget the history (the next frame starts from its own candidates)."""
@@ -277,7 +300,19 @@ class ReuseStage:
         bufs = frame.buffers
         h_dst = bufs.texture(HISTORY[1 - self._parity], 4, "u4")
         g_dst = bufs.texture(SURFACE[1 - self._parity], 4, "f4")
-        prog = program(frame, "stb_reuse_shade.frag", method.lighting_defines(frame, defines))
+        ldefines = method.lighting_defines(frame, defines)
+        # Fused: picks that need light_reflect's area path are listed and shaded by a
+        # second, compacted pass (common/reuse_area.glsl); not where a textured rect
+        # seen by the camera may replace the pixel (write_lighting's RECT_EMITTERS_SEEN).
+        area_pass = self.area_pass and big_tile is not None
+        area_pass = area_pass and "RECT_EMITTERS_SEEN" not in ldefines
+        self.last_area_pixels = 0
+        if area_pass:
+            ldefines = dict(ldefines, STB_REUSE_AREA_PASS=True)
+            self._area_list_reset(frame)
+            partial = bufs.texture(PARTIAL, 4, "f4")
+            partial.bind_to_image(IMAGE_UNIT_REUSE_PARTIAL, read=False, write=True)
+        prog = program(frame, "stb_reuse_shade.frag", ldefines)
         unit = method.bind_common(frame, prog)
         if cur is not None:
             method._bind(frame, prog, unit, "u_reuse", cur)
@@ -299,6 +334,51 @@ class ReuseStage:
         g_dst.bind_to_image(IMAGE_UNIT_REUSE_SURFACE, read=False, write=True)
         with frame.timings_scope("stb_lighting"):
             method.fullscreen_pass(frame, prog, "lighting")
+        frame.ctx.memory_barrier()
+        if area_pass:
+            self._area(method, frame, ldefines, h_dst)
+
+    def _area_list_reset(self, frame: FrameContext) -> None:
+        """Bind the area pass's pixel list (a count and one uint per pixel), count 0."""
+        w, h = frame.buffers.size
+        need = 4 * (1 + int(w) * int(h))
+        if self._area_list is None or self._area_list.size < need:
+            if self._area_list is not None:
+                self._area_list.release()
+            self._area_list = frame.ctx.buffer(reserve=need)
+        self._area_list.write(np.zeros(1, dtype=np.uint32).tobytes())
+        self._area_list.bind_to_storage_buffer(SSBO_STB_REUSE_AREA)
+
+    def _area(
+        self, method: Any, frame: FrameContext, defines: dict[str, Any], hist: moderngl.Texture
+    ) -> None:
+        """``stb_reuse_area.frag``: shade the listed pixels' area-path picks into the
+        lighting outputs, one fragment per listed pixel over a viewport as wide as the
+        frame and as tall as the list needs (its count read back: 4 bytes)."""
+        assert self._area_list is not None
+        count = int(np.frombuffer(self._area_list.read(4), dtype=np.uint32)[0])
+        self.last_area_pixels = count
+        if count == 0:
+            return
+        bufs = frame.buffers
+        w, h = (int(v) for v in bufs.size)
+        prog = program(frame, "stb_reuse_area.frag", defines)
+        method.bind_common(frame, prog)
+        set_uniform(prog, "u_list_width", w)
+        set_uniform(prog, "u_vis_reuse", 1 if method.o["reuse_visibility"] else 0)
+        hist.bind_to_image(IMAGE_UNIT_REUSE_RESERVOIR, read=True, write=True)
+        bufs.textures[PARTIAL].bind_to_image(IMAGE_UNIT_REUSE_PARTIAL, read=True, write=False)
+        bufs.textures["lighting"].bind_to_image(IMAGE_UNIT_REUSE_OUT_COLOR, read=False, write=True)
+        if "TAA_DEMOD_OUT" in defines:
+            units = (IMAGE_UNIT_REUSE_OUT_DEMOD, IMAGE_UNIT_REUSE_OUT_ALBEDO)
+            for unit, t in zip(units, TAA_INPUTS, strict=True):
+                bufs.textures[t.name].bind_to_image(unit, read=False, write=True)
+        if self._area_fbo is None or self._area_fbo.size != (w, h):
+            if self._area_fbo is not None:
+                self._area_fbo.release()
+            self._area_fbo = frame.ctx.empty_framebuffer((w, h))
+        with frame.timings_scope("stb_reuse_area"):
+            draw_fullscreen(frame.ctx, prog, self._area_fbo, (w, -(-count // w)))
         frame.ctx.memory_barrier()
 
     def _slots(
@@ -335,4 +415,10 @@ class ReuseStage:
         if self._remap is not None:
             self._remap.release()
             self._remap = None
+        if self._area_list is not None:
+            self._area_list.release()
+            self._area_list = None
+        if self._area_fbo is not None:
+            self._area_fbo.release()
+            self._area_fbo = None
         self.count = 0
