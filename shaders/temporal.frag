@@ -41,6 +41,9 @@ uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjit
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
 uniform mat4 u_prev_view;      // previous world -> view
+uniform vec4 u_prev_tan;       // previous view: tan half extents xy, aperture offsets zw (unit depth)
+uniform float u_edge_slack;    // px: how far a neighbour's motion may leave an old texel (edges)
+uniform float u_plane_tol;     // px footprints: an old texel's point off this surface's plane
 uniform vec2 u_jitter;         // this frame's jitter (px, image content shift)
 uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
@@ -123,13 +126,15 @@ struct Reprojection {
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
     float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
+    vec3 prev_p;    // this surface's point in the previous view space (m)
+    vec3 prev_n;    // ... its normal there
 };
 
 // Reprojection (unjittered previous pixel position), box size and history cap. A
 // pixel whose surface has not moved (< 0.5 px) keeps a longer history and a wider
 // box: with a still camera the box only has to catch what the light caps and
 // disocclusion miss, and every clip of noisy input is a bias.
-Reprojection reproject(ivec2 ip, float d) {
+Reprojection reproject(ivec2 ip, float d, vec3 n) {
     Reprojection r;
     vec2 mv = texelFetch(u_motion, ip, 0).xy - u_jitter;
     r.pos = gl_FragCoord.xy - mv;
@@ -138,9 +143,13 @@ Reprojection reproject(ivec2 ip, float d) {
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     r.cur_w = mix(u_cur_weight, 1.0, still);
+    r.prev_p = vec3(0.0);
+    r.prev_n = vec3(0.0);
     if (d > 0.0) {
         vec3 world = world_pos_from_depth(gl_FragCoord.xy, d);
-        r.prev_d = max(-(u_prev_view * vec4(world, 1.0)).z, 1e-6);
+        r.prev_p = (u_prev_view * vec4(world, 1.0)).xyz;
+        r.prev_d = max(-r.prev_p.z, 1e-6);
+        r.prev_n = mat3(u_prev_view) * n;
         for (int i = 0; i < u_light_changes; ++i) {
             if (distance(world, u_light_spheres[i].xyz) < u_light_spheres[i].w) {
                 r.max_len = min(r.max_len, u_light_caps[i]);
@@ -160,11 +169,34 @@ struct Footprint {
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
 // depth it had in the previous view, not its opposite side (sky: sky).
-bool same_surface(vec4 g, vec3 gn, float d, vec3 n, float prev_d) {
+bool same_surface(vec4 g, vec3 gn, float d, vec3 n, Reprojection r, ivec2 t) {
     if (d <= 0.0) {
         return g.x <= 0.0;
     }
-    return g.x > 0.0 && abs(g.x - prev_d) <= 0.03 * prev_d + 1e-4 && dot(gn, n) > -0.5;
+    bool ok = g.x > 0.0 && abs(g.x - r.prev_d) <= 0.03 * r.prev_d + 1e-4 && dot(gn, n) > -0.5;
+    if (ok && u_plane_tol > 0.0) {
+        // The texel's old point (its pixel centre through the previous view's
+        // projection, jitter included) lies on this surface's tangent plane: a face
+        // meeting it at a crease (a box standing on the floor) is within 3 % of the
+        // floor's depth near the crease, but off its plane.
+        vec2 ndc = (vec2(t) + 0.5) * u_resolution.zw * 2.0 - 1.0;
+        vec2 xy = ndc * u_prev_tan.xy + u_prev_tan.zw;
+        bool ortho = u_cam_pos.w > 0.5;
+        vec3 q = ortho ? vec3(xy, -g.x) : vec3(xy * g.x, -g.x);
+        float foot = 2.0 * u_prev_tan.y * u_resolution.w * (ortho ? 1.0 : g.x);
+        ok = abs(dot(r.prev_n, q - r.prev_p)) <= u_plane_tol * foot + 1e-4;
+    }
+    return ok;
+}
+
+// Does the surface of a 3x3 neighbour whose (unjittered) motion is mvj, seen last
+// frame at `texel` (previous pixel position), land beside this pixel now? A jitter
+// edge moves with its surfaces (camera, rigid motion: mvj ~ this pixel's motion) and
+// does; a moving object's old texels do not -- the floor behind a sliding box took
+// the box's history as "an edge the jitter crosses" while the box's trailing side was
+// in the 3x3 (issue 31, docs/STB_NOTES.md "(reuse6)").
+bool moves_beside(vec2 texel, vec2 mvj) {
+    return all(lessThanEqual(abs(texel + mvj - gl_FragCoord.xy), vec2(u_edge_slack)));
 }
 
 // Else: is it the surface of a 3x3 neighbour (depth dj moved like this pixel's by
@@ -192,7 +224,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         inside[k] = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, size));
         g[k] = inside[k] ? texelFetch(u_prev_geo, t, 0) : vec4(0.0);
         gn[k] = oct_decode(g[k].yz);
-        same[k] = inside[k] && same_surface(g[k], gn[k], d, n, r.prev_d);
+        same[k] = inside[k] && same_surface(g[k], gn[k], d, n, r, t);
         open = open || (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0);
     }
     float shift = r.prev_d - d;  // this surface's depth change, applied to its neighbours
@@ -200,10 +232,12 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
         float dj = texelFetch(u_demod, q, 0).a;
         vec3 nj = oct_decode(texelFetch(u_normal, q, 0).xy);
+        vec2 mvj = texelFetch(u_motion, q, 0).xy - u_jitter;
         open = false;
         for (int k = 0; k < 4; ++k) {
             if (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0) {
-                same[k] = neighbour_surface(g[k], gn[k], dj, nj, shift);
+                vec2 texel = vec2(base + ivec2(k & 1, k >> 1)) + 0.5;
+                same[k] = moves_beside(texel, mvj) && neighbour_surface(g[k], gn[k], dj, nj, shift);
                 open = open || !same[k];
             }
         }
@@ -238,8 +272,10 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
     float shift = r.prev_d - d;
     bool edge = false;
     for (int j = 1; j < 9 && !edge; ++j) {
-        float dj = texelFetch(u_demod, clamp(ip + TAPS[j], ivec2(0), size - 1), 0).a;
+        ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
+        float dj = texelFetch(u_demod, q, 0).a;
         edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
+        edge = edge && moves_beside(vec2(c0) + 0.5, texelFetch(u_motion, q, 0).xy - u_jitter);
     }
     if (!edge) return fp;
     float best = 1e30;
@@ -302,8 +338,8 @@ void main() {
     vec2 enc = texelFetch(u_normal, ip, 0).xy;
     vec3 m1, sigma;
     neighbourhood_stats(ip, size, d, m1, sigma);
-    Reprojection r = reproject(ip, d);
     vec3 n = oct_decode(enc);
+    Reprojection r = reproject(ip, d, n);
     Footprint fp = footprint_history(ip, size, d, n, r);
     if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
     float tm2;

@@ -553,54 +553,77 @@ def test_taa_light_switched_off_vanishes_within_two_frames(gl_ctx):
     assert abs(left[-1]) < 0.1, left
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 31 acceptance not met: settles in 9 frames (reservoir history on; 18 "
-    "with reuse_temporal=off, 9 with reuse_m_cap=8) -- the still level it must reach is "
-    "much lower with reuse than without, and the uncovered floor restarts both histories",
+#: The opt-in configuration of docs/STB_NOTES.md (reuse3/reuse4): per-pixel candidates
+#: shared over the 2x2 quad, the tile target, no spatial reuse (no reservoir history: taa
+#: does all the temporal work).
+SHARE_TILE = dict(
+    reuse=True,
+    N=4,
+    reuse_k=0,
+    big_tile=32,
+    reuse_candidates=64,
+    reuse_res="share",
+    reuse_target="tile",
 )
-def test_taa_sliding_box_leaves_no_trail(gl_ctx):
-    """tests/test_temporal.py's sliding box with reuse on under taa: the error in the
-    floor the box uncovered is back to the still level (the same region with the box
-    parked at its final place, x 1.5) within 8 frames of the uncovering, averaged over
-    three seeds; the yardstick is STB with reuse itself, 64 accumulated frames of the
-    final state."""
+SLIDE_FRAMES = 30
+#: Frame index at which the box has left the whole uncovered region (time 14).
+SLIDE_UNCOVERED = 13
+
+
+def _slide_errors(opts: dict) -> dict[str, np.ndarray]:
+    """tests/test_temporal.py's sliding box (still camera, taa, 96x54) with the STB
+    options ``opts``, over its three seeds: the uncovered floor's error per frame
+    (``region_error``, mean over the seeds) against 64 accumulated frames of the final
+    state, for the moving box ("moving"), the box parked at its final place ("still")
+    and the moving box with taa's history dropped everywhere at the uncovering
+    ("restart": what a perfect disocclusion does). Computed once per option set."""
+    key = tuple(sorted(opts.items()))
+    if key not in _SLIDE_CACHE:
+        _SLIDE_CACHE[key] = _slide_run(opts)
+    return _SLIDE_CACHE[key]
+
+
+_SLIDE_CACHE: dict[tuple, dict[str, np.ndarray]] = {}
+
+
+def _slide_run(opts: dict) -> dict[str, np.ndarray]:
     from test_temporal import SLIDE_SEEDS, _box_track, _lit_floor
 
-    from stb_hydra.metrics import frames_to_settle, region_error
+    from stb_hydra.metrics import region_error
 
-    frames, w, h = 30, 96, 54
+    frames, w, h = SLIDE_FRAMES, 96, 54
     stage = _lit_floor(_box_track(frames))
     times = [1 + i for i in range(frames)]
-    OPTS = REUSE
 
-    def sequence(st, temporal: str, seed: int = 0, aov: bool = False, **kw):
+    def sequence(st, temporal: str, seed: int = 0, lighting: str = "stb", restart: int = -1):
         settings = RenderSettings(
             width=w,
             height=h,
-            lighting=kw.get("lighting", "stb"),
+            lighting=lighting,
             temporal=temporal,
             seed=seed,
-            method_options=OPTS if kw.get("lighting", "stb") == "stb" else {},
+            method_options=opts if lighting == "stb" else {},
         )
         eng = Engine(st, settings)
         out, depth_maps = [], []
         try:
-            if aov:
+            if lighting == "reference":
                 eng.request_aovs({"depth"})
-            for t in times:
+            for i, t in enumerate(times):
+                if i == restart:
+                    eng.temporal.reset()  # type: ignore[union-attr]
                 eng.render(time=t)
                 out.append(eng.aovs["color"][..., :3].copy())
-                if aov:
+                if lighting == "reference":
                     depth_maps.append(eng.aovs["depth"].reshape(h, w).copy())
         finally:
             eng.release()
         return np.array(out), depth_maps
 
-    _, geo = sequence(stage, "off", aov=True, lighting="reference")
+    _, geo = sequence(stage, "off", lighting="reference")
     uncovered = (geo[11] > 0) & (geo[11] < geo[-1] - 0.3)
     assert uncovered.sum() > 30
-    eng = Engine(stage, RenderSettings(width=w, height=h, lighting="stb", method_options=OPTS))
+    eng = Engine(stage, RenderSettings(width=w, height=h, lighting="stb", method_options=opts))
     try:
         eng.render(time=frames, accumulate=64)
         settled = eng.aovs["color"][..., :3].copy()
@@ -608,15 +631,66 @@ def test_taa_sliding_box_leaves_no_trail(gl_ctx):
         eng.release()
     refs = np.repeat(settled[None], frames, axis=0)
     still_stage = _lit_floor(_box_track(frames, moving=False))
-    err, still_err = np.zeros(frames), np.zeros(frames)
+    out = {k: np.zeros(frames) for k in ("moving", "still", "restart")}
     for seed in SLIDE_SEEDS:
-        moving, _ = sequence(stage, "taa", seed)
-        still, _ = sequence(still_stage, "taa", seed)
-        err += region_error(moving, refs, uncovered) / len(SLIDE_SEEDS)
-        still_err += region_error(still, refs, uncovered) / len(SLIDE_SEEDS)
-    level = 1.5 * float(np.median(still_err[13:]))
-    settle = frames_to_settle(err[13:], level)
-    assert settle <= 8, (settle, err[13:].round(3).tolist(), level)
+        runs = {
+            "moving": sequence(stage, "taa", seed)[0],
+            "still": sequence(still_stage, "taa", seed)[0],
+            "restart": sequence(stage, "taa", seed, restart=SLIDE_UNCOVERED)[0],
+        }
+        for k, seq in runs.items():
+            out[k] += region_error(seq, refs, uncovered) / len(SLIDE_SEEDS)
+    return out
+
+
+@pytest.mark.parametrize(
+    "opts",
+    [
+        pytest.param(REUSE, id="reuse"),
+        pytest.param(
+            SHARE_TILE,
+            id="share_tile",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="issue 31 acceptance not met with the opt-in configuration: settles "
+                "in 16 frames -- no ghost is left (test_taa_sliding_box_leaves_no_ghost), but "
+                "a young history is noisier than the still floor's, whose level keeps "
+                "falling as 1/sqrt(n) (docs/STB_NOTES.md, reuse4 and reuse6)",
+            ),
+        ),
+    ],
+)
+def test_taa_sliding_box_leaves_no_trail(gl_ctx, opts):
+    """tests/test_temporal.py's sliding box with reuse on under taa: the error in the
+    floor the box uncovered is back to the still level (the same region with the box
+    parked at its final place, x 1.5) within 8 frames of the uncovering, averaged over
+    three seeds; the yardstick is STB with reuse itself, 64 accumulated frames of the
+    final state. (Before issue 31's reuse6 fix -- taa's edge test took the box's old
+    texels for a jitter edge -- ``reuse`` settled in 9 frames.)"""
+    from stb_hydra.metrics import frames_to_settle
+
+    e = _slide_errors(opts)
+    level = 1.5 * float(np.median(e["still"][SLIDE_UNCOVERED:]))
+    settle = frames_to_settle(e["moving"][SLIDE_UNCOVERED:], level)
+    assert settle <= 8, (settle, e["moving"][SLIDE_UNCOVERED:].round(3).tolist(), level)
+
+
+def test_taa_sliding_box_leaves_no_ghost(gl_ctx):
+    """The trail as a persisting deviation, not a young history's noise: from 8 frames
+    after the uncovering on, the uncovered floor's error with the box sliding away is
+    within 1.6x (mean over those frames) of the same sequence with taa's whole history
+    dropped at the uncovering -- the best any disocclusion test can do. With the opt-in
+    configuration (the lowest still level, so the most sensitive): 1.34x; 2.8x before
+    issue 31's reuse6 fix (the floor took the box's history as a jitter edge), 1.49x with
+    that fix but without the tangent-plane test (the box's side at the crease)."""
+    e = _slide_errors(SHARE_TILE)
+    late = slice(SLIDE_UNCOVERED + 8, SLIDE_FRAMES)
+    ratio = float(np.mean(e["moving"][late] / e["restart"][late]))
+    assert ratio <= 1.6, (
+        ratio,
+        e["moving"][late].round(3).tolist(),
+        e["restart"][late].round(3).tolist(),
+    )
 
 
 def test_reuse_candidate_options_are_checked():

@@ -75,6 +75,22 @@ CLIP_GAMMA = (3.0, 8.0)
 #: 1.46x, 0: 0.306 / 0.08 / 1.42x. The mean's blur (lighting only: the input is
 #: demodulated; within 2 px) goes once the camera stops.
 CURRENT_WEIGHT_MOVING = 0.0
+#: An old texel that is not this pixel's surface is still kept as "an edge the jitter
+#: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
+#: brings the texel within this many px of the pixel (per axis; equal motion gives
+#: < 1). Without it the floor a sliding box uncovered took the box's history from the
+#: box's trailing side (tests/test_temporal.py's box with the opt-in reuse configuration
+#: of issue 31, seed 0: the uncovered floor's error 8 frames on 0.103 -> 0.054, with
+#: PLANE_TOLERANCE 0.049, a whole-history restart 0.037; the still courtyard unchanged:
+#: docs/STB_NOTES.md "(reuse6)").
+EDGE_MOTION_SLACK = 2.0
+#: Same-surface test: the old texel's point within this many pixel footprints of the
+#: pixel's tangent plane (as well as 3 % of its depth); 0: no plane test. Catches a
+#: face that met this surface at a crease (a box's side standing on the floor: within
+#: 3 % of the floor's depth near it). Sliding box, opt-in configuration, three seeds:
+#: late error 1.49x -> 1.34x a restart's; still courtyard relMSE taa / accumulate 1.19x
+#: -> 1.22x (docs/STB_NOTES.md "(reuse6)").
+PLANE_TOLERANCE = 0.25
 #: Camera cut: the view direction turned by more than this (degrees) or the
 #: camera moved by more than this fraction of the scene's diagonal in one frame.
 CUT_ANGLE_DEG = 30.0
@@ -220,6 +236,7 @@ class TemporalTask(Pass):
             set_uniform(prog, uniform, unit)
         prev = self._prev_view if self._prev_view is not None else frame.view
         set_uniform(prog, "u_prev_view", np.ascontiguousarray(prev.view, dtype=np.float64))
+        set_uniform(prog, "u_prev_tan", tuple(float(v) for v in (*prev.tan_half, *prev.offset)))
         set_uniform(prog, "u_jitter", tuple(float(j) for j in frame.view.jitter))
         set_uniform(prog, "u_reset", 1.0 if reason else 0.0)
         spheres, caps = self._changes
@@ -237,6 +254,8 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
+        set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
+        set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         fbo = bufs.framebuffer(f"fb_taa_{1 - src}", [OUTPUT, h_dst, g_dst])
         draw_fullscreen(ctx, prog, fbo, bufs.size)
         hist.filter = (moderngl.NEAREST, moderngl.NEAREST)
