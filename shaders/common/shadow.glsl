@@ -426,7 +426,7 @@ vec3 local_shadow_hard(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 // area (common/area.glsl); the shadow lookup is skipped where nothing is reflected.
 vec3 light_radiance(Light L, Surface s) {
     vec3 Ldir, d, sp;
-    if (!light_reflect(L, s, Ldir, d, sp)) return vec3(0.0);
+    if (!light_reflect_exact(L, s, Ldir, d, sp)) return vec3(0.0);
     vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
     return c * local_shadow(L, s.P, s.N);
