@@ -264,6 +264,9 @@ int area_poly_setup(Light L, vec3 P, out AreaPoly p) {
         p.n = M;
         return M;
     }
+#ifdef NO_CYLINDER_LIGHTS  // no cylinder in view (InViewLights.has_cylinders)
+    return 0;
+#else
     float h = L.area.x, r = L.area.y;
     vec3 q = -c;
     float t = dot(q, X);
@@ -277,6 +280,7 @@ int area_poly_setup(Light L, vec3 P, out AreaPoly p) {
     p.B0 = c - h * X; p.B1 = c + h * X;
     p.n = 2 * (M / 2);
     return p.n;
+#endif
 }
 
 // Vertex k (0 <= k < p.n) of area_polygon, relative to P.
@@ -285,6 +289,7 @@ vec3 area_vertex(AreaPoly p, int k) {
     vec3 rect = p.c + sx * p.hx + sy * p.hy;
     vec2 cs = AREA_CIRCLE[k & 15];
     vec3 B = p.B0;
+#ifndef NO_CYLINDER_LIGHTS  // its cos / sin per vertex ran for every light (llvmpipe)
     if (p.kind == AREA_CYLINDER) {
         int K = p.n / 2;
         int j = k < K ? k : 2 * K - 1 - k;
@@ -293,6 +298,7 @@ vec3 area_vertex(AreaPoly p, int k) {
         B = k < K ? p.B0 : p.B1;
         return B + p.R * (cs.x * p.U + cs.y * p.W);
     }
+#endif
     return p.kind == AREA_RECT ? rect : B + p.R * (cs.x * p.U + cs.y * p.W);
 }
 
@@ -417,11 +423,17 @@ bool sphere_reflect(Light L, Surface s, vec3 Ldir, float dist, float f, float ws
     if (!sphere_reflect_narrow(L, s, Ldir, dist, f, ssp, diff, spec)) return false;
     if (ws > 0.0) {
         spec *= 1.0 - ws;
+#ifdef AREA_ARRAY_INTEGRALS  // the array form (tests compare the two)
+        vec3 v[AREA_MAXV];
+        int n = area_polygon(L, s.P, v);
+        vec3 ltc = ltc_specular(s, v, n);
+#else
         AreaPoly p;
         area_poly_setup(L, s.P, p);
         float unused;
         vec3 ltc;
         area_integrals(p, s, false, unused, ltc);  // the LTC integral, streamed
+#endif
         vec3 Lrad = L.intensity.rgb * L.area.w * range_window(dist, L.pos_range.w)
                   * light_tint_rgb(L, -Ldir);
         spec += ltc * Lrad * ws;
@@ -546,9 +558,10 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
 // light_reflect for the exact methods (light_radiance): the same value, the polygon's
 // form factor and LTC integral streamed in one pass over its vertices (area_integrals:
 // no vertex arrays; only the order of each contour sum differs). A textured rect
-// (RECT_TEXTURES) and a clearcoat keep light_reflect's array path.
+// (RECT_TEXTURES) and a clearcoat keep light_reflect's array path; AREA_ARRAY_INTEGRALS
+// (tests only) takes it for every light.
 bool light_reflect_exact(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 spec) {
-#ifdef RECT_TEXTURES
+#if defined(RECT_TEXTURES) || defined(AREA_ARRAY_INTEGRALS)
     return light_reflect(L, s, Ldir, diff, spec);
 #else
     diff = vec3(0.0); spec = vec3(0.0);

@@ -255,6 +255,8 @@ class LightingMethod:
                 defines["HAS_CONES"] = True
             if not lights.has_focus:
                 defines["NO_FOCUS"] = True  # no focusTint pow (common/lights.glsl)
+            if not lights.has_cylinders:
+                defines["NO_CYLINDER_LIGHTS"] = True  # common/area.glsl's streamed polygon
             if self.points_first:
                 self.light_models |= light_models(lights)
                 for m in light_loops(self.light_models, self.clearcoat):

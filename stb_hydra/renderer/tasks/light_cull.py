@@ -54,6 +54,7 @@ class LightCullTask(Pass):
                 has_cones=bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))),
                 has_ies=bool(np.any(t.ies_layer[rows] >= 0)),
                 has_focus=bool(np.any(t.focus[rows] > 0)),
+                has_cylinders=bool(np.any(t.area_kind[rows] == sc.AREA_CYLINDER)),
                 has_rect_textures=bool(np.any(t.texture_layer[rows] >= 0)),
                 point_count=point_count,
                 sphere_count=sphere_count,
