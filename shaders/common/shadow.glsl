@@ -441,13 +441,19 @@ vec3 local_shadow_hard(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 // Shadowed radiance (nits) light L reflects towards s.V: the exact methods' per-light
 // term (reference, tiled, clustered, lighttree). Area lights are integrated over their
 // area (common/area.glsl); the shadow lookup is skipped where nothing is reflected.
-vec3 light_radiance(Light L, Surface s) {
+vec3 light_radiance_impl(Light L, Surface s, const bool shadowed) {
     vec3 Ldir, d, sp;
     if (!light_reflect_exact(L, s, Ldir, d, sp)) return vec3(0.0);
     vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
-    return c * local_shadow(L, s.P, s.N);
+    return shadowed ? c * local_shadow(L, s.P, s.N) : c;
 }
+vec3 light_radiance(Light L, Surface s) { return light_radiance_impl(L, s, true); }
+// light_radiance for a light without a shadow map (ies_shadow.z < 0: local_shadow is 1,
+// the same value) with the shadow code left out: the exact methods' loops over the
+// lights without shadows (SPLIT_UNSHADOWED, light_buffer.unshadowed_first; on llvmpipe
+// a loop's shadow code runs for every light of the SIMD group, shadowed or not).
+vec3 light_radiance_unshadowed(Light L, Surface s) { return light_radiance_impl(L, s, false); }
 
 // light_radiance for a sphere light (L.area.z == AREA_SPHERE: radius > 0, not
 // treatAsPoint) with only the sphere's code: the point model, or the closed-form diffuse
@@ -458,7 +464,7 @@ vec3 light_radiance(Light L, Surface s) {
 // renderer/light_buffer.narrow_spheres), so the LTC code is left out; on llvmpipe a
 // branch's body runs even where no lane takes it. The exact methods loop over their
 // sphere lights with light_radiance_sphere_narrow / light_radiance_sphere_wide.
-vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow) {
+vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow, const bool shadowed) {
 #ifdef HAS_CLEARCOAT
     if (s.coat > 0.0) return light_radiance(L, s);
 #endif
@@ -480,13 +486,20 @@ vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow) {
     }
     vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
-    return c * local_shadow(L, s.P, s.N);
+    return shadowed ? c * local_shadow(L, s.P, s.N) : c;
 }
 vec3 light_radiance_sphere_narrow(Light L, Surface s) {
-    return light_radiance_sphere_impl(L, s, true);
+    return light_radiance_sphere_impl(L, s, true, true);
 }
 vec3 light_radiance_sphere_wide(Light L, Surface s) {
-    return light_radiance_sphere_impl(L, s, false);
+    return light_radiance_sphere_impl(L, s, false, true);
+}
+// The same for sphere lights without a shadow map (light_radiance_unshadowed).
+vec3 light_radiance_sphere_narrow_unshadowed(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, true, false);
+}
+vec3 light_radiance_sphere_wide_unshadowed(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, false, false);
 }
 
 // light_radiance for light i of the light buffer, a light without extent

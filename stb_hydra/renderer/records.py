@@ -68,6 +68,11 @@ class InViewLights:
     point_count: int = 0
     sphere_count: int = 0
     wide_sphere_count: int = 0
+    #: The first ``sphere_unshadowed`` narrow spheres, and the first ``tail_unshadowed``
+    #: lights after them (wide spheres and the rest), have no shadows
+    #: (``light_buffer.unshadowed_first``; 0 when the order is not split).
+    sphere_unshadowed: int = 0
+    tail_unshadowed: int = 0
 
     @property
     def count(self) -> int:

@@ -12,7 +12,7 @@ from ...scene.prims import CONE_CUTOFF_TEST_RAD
 from .. import shader_constants as sc
 from ..frame import FrameContext
 from ..graph import Imported, Rec
-from ..light_buffer import by_light_model, cull_lights, narrow_spheres
+from ..light_buffer import by_light_model, cull_lights, narrow_spheres, unshadowed_first
 from ..material_binding import alpha_floor
 from ..records import InViewLights
 from .base import Pass
@@ -42,12 +42,15 @@ class LightCullTask(Pass):
         t = self.delegate.light_table
         rows = cull_lights(t, frame.view.frustum_planes())
         rows = rows[~t.baked[rows]]  # baked lights come from the lightmaps (tasks/lightmap.py)
-        point_count = sphere_count = wide_count = 0
+        point_count = sphere_count = wide_count = sphere_unshadowed = tail_unshadowed = 0
         if self.points_first:
             narrow = None
             if np.any(t.area_kind[rows] == sc.AREA_SPHERE):
                 narrow = self._narrow(rows)
             rows, point_count, sphere_count, wide_count = by_light_model(t, rows, narrow)
+            rows, sphere_unshadowed, tail_unshadowed = unshadowed_first(
+                t, rows, point_count, sphere_count
+            )
         frame.put(
             InViewLights(
                 rows=rows,
@@ -59,6 +62,8 @@ class LightCullTask(Pass):
                 point_count=point_count,
                 sphere_count=sphere_count,
                 wide_sphere_count=wide_count,
+                sphere_unshadowed=sphere_unshadowed,
+                tail_unshadowed=tail_unshadowed,
             )
         )
         frame.stats["fov_lights"] = len(rows)
