@@ -8,6 +8,10 @@
 uniform uint u_point_lights;  // the first u_point_lights lights have no extent,
 uniform uint u_sphere_end;    // those up to u_sphere_end narrow sphere lights,
 uniform uint u_wide_sphere_end;  // those up to u_wide_sphere_end other sphere lights
+#ifdef SPLIT_UNSHADOWED  // light_buffer.unshadowed_first: lights without shadows first
+uniform uint u_sphere_unshadowed_end;  // in the narrow spheres,
+uniform uint u_tail_unshadowed_end;    // in the lights after them
+#endif
 #endif
 
 #ifdef DOME_SAMPLED
@@ -69,6 +73,16 @@ void main() {
     }
 #endif
 #ifdef LOOP_SPHERE_NARROW
+#ifdef SPLIT_UNSHADOWED  // the part's lights without shadows first, no shadow code
+    for (uint e = min(u_sphere_unshadowed_end, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_narrow_unshadowed(lights[i], s);
+    }
+#endif
     for (uint e = min(u_sphere_end, n); i < e; ++i) {
         while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
         if (i >= e) break;
@@ -79,6 +93,16 @@ void main() {
     }
 #endif
 #ifdef LOOP_SPHERE_WIDE
+#ifdef SPLIT_UNSHADOWED
+    for (uint e = min(u_tail_unshadowed_end, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_sphere_wide_unshadowed(lights[i], s);
+    }
+#endif
     for (uint e = min(u_wide_sphere_end, n); i < e; ++i) {
         while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
         if (i >= e) break;
@@ -89,6 +113,16 @@ void main() {
     }
 #endif
 #ifdef LOOP_GENERAL
+#ifdef SPLIT_UNSHADOWED
+    for (uint e = min(u_tail_unshadowed_end, n); i < e; ++i) {
+        while (i < e && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
+        if (i >= e) break;
+#ifdef HAS_LINKS
+        if (!light_linked(i, group)) continue;
+#endif
+        c += light_radiance_unshadowed(lights[i], s);
+    }
+#endif
     for (; i < n; ++i) {
         while (i < n && !light_reaches(i, s.P)) ++i;  // SKIP_UNREACHED (above)
         if (i >= n) break;

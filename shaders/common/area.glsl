@@ -202,6 +202,181 @@ vec3 ltc_specular(Surface s, vec3 v[AREA_MAXV], int n) {
     return albedo * I;
 }
 
+// ---- The same polygon integrals, streamed (issue 34) --------------------------------
+// area_polygon + polygon_form_factor (+ ltc_specular) vertex by vertex, without arrays:
+// on llvmpipe a local array indexed by a loop counter lives in memory and every access
+// is a per-lane gather / scatter (the clip's copies, the LTC's transformed copy), which
+// cost ~88 % of a disk / rect light's shading. The vertices are generated in
+// area_polygon's order with its expressions, clipped to the horizon edge by edge
+// (Sutherland-Hodgman's output edges: each original edge's part above the horizon, and
+// from each exit point to the next entry point along the horizon) and summed as they
+// come; only the order of the sum differs (float rounding). The exact methods
+// (light_radiance) use it; light_reflect keeps the array form (STB, reuse).
+
+// cos, sin of 2 pi k / LIM_AREA_POLY_VERTS, constant-folded as area_polygon's unrolled loop.
+#define AREA_CS(k) vec2(cos(2.0 * PI * float(k) / float(LIM_AREA_POLY_VERTS)), \
+                        sin(2.0 * PI * float(k) / float(LIM_AREA_POLY_VERTS)))
+#if LIM_AREA_POLY_VERTS != 16
+#error "AREA_CIRCLE lists 16 vertices: LIM_AREA_POLY_VERTS changed"
+#endif
+const vec2 AREA_CIRCLE[16] = vec2[](AREA_CS(0), AREA_CS(1), AREA_CS(2), AREA_CS(3), AREA_CS(4),
+    AREA_CS(5), AREA_CS(6), AREA_CS(7), AREA_CS(8), AREA_CS(9), AREA_CS(10), AREA_CS(11),
+    AREA_CS(12), AREA_CS(13), AREA_CS(14), AREA_CS(15));
+
+// What area_polygon's vertex k needs (relative to P, world): a rect's centre and half
+// axes; else vertex k = B + R (cos a_k U + sin a_k W), B = B0 (cylinder: B1 for its
+// second half-rim), a_k = 2 pi k / M (cylinder: from -phi0 to +phi0 and back).
+struct AreaPoly {
+    float kind;
+    int n;
+    vec3 c, hx, hy;    // rect
+    vec3 B0, B1, U, W; // circle / rims
+    float R, phi0;
+};
+
+// area_polygon's set-up: the vertex count (0: P sees none of the emitting surface).
+int area_poly_setup(Light L, vec3 P, out AreaPoly p) {
+    const int M = LIM_AREA_POLY_VERTS;
+    vec3 c = L.pos_range.xyz - P;
+    vec3 X = L.tangent_tex.xyz;
+    vec3 Y = light_bitangent(L);
+    vec3 Z = L.axis_emit.xyz;
+    p.kind = L.area.z;
+    p.c = c; p.hx = X * L.area.x; p.hy = Y * L.area.y;
+    p.B0 = c; p.B1 = c; p.U = X; p.W = Y; p.phi0 = 0.0;
+    float grow = sqrt(2.0 * PI / (float(M) * sin(2.0 * PI / float(M))));
+    p.R = L.area.x * grow;
+    p.n = 0;
+    if (p.kind == AREA_RECT || p.kind == AREA_DISK) {
+        if (dot(-c, Z) <= 0.0) return 0;
+        p.n = p.kind == AREA_RECT ? 4 : M;
+        return p.n;
+    }
+    if (p.kind == AREA_SPHERE) {
+        float d = length(c);
+        float r = L.area.x;
+        if (d <= r * 1.0001) return 0;
+        vec3 a = c / d;
+        vec3 u = normalize(abs(a.y) < 0.9 ? cross(a, vec3(0.0, 1.0, 0.0)) : cross(a, vec3(1.0, 0.0, 0.0)));
+        p.B0 = a * (d - r * r / d);
+        p.R = r * sqrt(max(1.0 - r * r / (d * d), 0.0)) * grow;
+        p.U = u; p.W = cross(a, u);
+        p.n = M;
+        return M;
+    }
+#ifdef NO_CYLINDER_LIGHTS  // no cylinder in view (InViewLights.has_cylinders)
+    return 0;
+#else
+    float h = L.area.x, r = L.area.y;
+    vec3 q = -c;
+    float t = dot(q, X);
+    vec3 qr = q - t * X;
+    float rho = length(qr);
+    if (rho <= r * 1.0001) return 0;
+    vec3 e = qr / rho;
+    p.U = e; p.W = cross(X, e);
+    p.phi0 = acos(r / rho);
+    p.R = r;
+    p.B0 = c - h * X; p.B1 = c + h * X;
+    p.n = 2 * (M / 2);
+    return p.n;
+#endif
+}
+
+// Vertex k (0 <= k < p.n) of area_polygon, relative to P.
+vec3 area_vertex(AreaPoly p, int k) {
+    float sx = k == 1 || k == 2 ? 1.0 : -1.0, sy = k >= 2 ? 1.0 : -1.0;
+    vec3 rect = p.c + sx * p.hx + sy * p.hy;
+    vec2 cs = AREA_CIRCLE[k & 15];
+    vec3 B = p.B0;
+#ifndef NO_CYLINDER_LIGHTS  // its cos / sin per vertex ran for every light (llvmpipe)
+    if (p.kind == AREA_CYLINDER) {
+        int K = p.n / 2;
+        int j = k < K ? k : 2 * K - 1 - k;
+        float a = -p.phi0 + 2.0 * p.phi0 * float(j) / float(K - 1);
+        cs = vec2(cos(a), sin(a));
+        B = k < K ? p.B0 : p.B1;
+        return B + p.R * (cs.x * p.U + cs.y * p.W);
+    }
+#endif
+    return p.kind == AREA_RECT ? rect : B + p.R * (cs.x * p.U + cs.y * p.W);
+}
+
+// polygon_form_factor's term of edge a -> b (unit vectors) for normal N.
+float contour_term(vec3 a, vec3 b, vec3 N) {
+    vec3 cr = cross(a, b);
+    float s = length(cr);
+    float th = atan(s, dot(a, b));
+    return dot(cr, N) * (s > 1e-9 ? th / s : 1.0);
+}
+
+// A horizon-clipped contour integral fed one polygon vertex at a time.
+struct Contour {
+    vec3 a, ah;          // the last vertex and its unit vector
+    float da;            // its height over the horizon (dot(N, a))
+    vec3 exit_h, entry_h;  // the pending exit point, the first entry point (unit)
+    bool has_exit, has_entry;
+    float sum;
+    int count;           // vertices of the clipped polygon
+};
+
+void contour_start(out Contour c, vec3 a, vec3 N) {
+    c.a = a; c.ah = normalize(a); c.da = dot(N, a);
+    c.exit_h = vec3(0.0, 0.0, 1.0); c.entry_h = vec3(0.0, 0.0, 1.0);
+    c.has_exit = false; c.has_entry = false;
+    c.sum = 0.0; c.count = 0;
+}
+
+// Edge from the last vertex to b: its part above the horizon, and on entering, the
+// horizon edge from the pending exit point (Sutherland-Hodgman's output edges).
+void contour_edge(inout Contour c, vec3 b, vec3 N) {
+    vec3 a = c.a;
+    float da = c.da, db = dot(N, b);
+    bool ina = da >= 0.0, inb = db >= 0.0;
+    vec3 x = a + (b - a) * (da / (da - db));
+    vec3 xh = normalize(x), bh = normalize(b);
+    bool crossing = ina != inb;
+    float seg = contour_term(ina ? c.ah : xh, inb ? bh : xh, N);
+    if (ina || inb) c.sum += seg;
+    float join = contour_term(c.exit_h, xh, N);
+    if (crossing && inb) {            // entering: from the pending exit, or the first entry
+        if (c.has_exit) c.sum += join;
+        else if (!c.has_entry) { c.entry_h = xh; c.has_entry = true; }
+        c.has_exit = false;
+    }
+    if (crossing && ina) { c.exit_h = xh; c.has_exit = true; }
+    c.count += (ina ? 1 : 0) + (crossing ? 1 : 0);
+    c.a = b; c.ah = bh; c.da = db;
+}
+
+// polygon_form_factor's value once every edge is in.
+float contour_end(Contour c, vec3 N) {
+    float sum = c.sum;
+    if (c.has_exit && c.has_entry) sum += contour_term(c.exit_h, c.entry_h, N);
+    return c.count < 3 ? 0.0 : min(abs(sum) / (2.0 * PI), 1.0);
+}
+
+// The diffuse form factor (normal s.N) and the LTC specular (albedo x clamped-cosine
+// integral) of the polygon p, in one pass over its vertices.
+// `diffuse` false: the LTC integral alone (F = 0; the sphere lights' closed form).
+void area_integrals(AreaPoly p, Surface s, const bool diffuse, out float F, out vec3 ltc) {
+    vec3 T1, T2, albedo;
+    vec4 m;
+    ltc_setup(s, T1, T2, m, albedo);
+    const vec3 Z = vec3(0.0, 0.0, 1.0);
+    Contour cd, cl;
+    vec3 v0 = area_vertex(p, 0);
+    contour_start(cd, v0, s.N);
+    contour_start(cl, ltc_apply(T1, T2, s.N, m, v0), Z);
+    for (int k = 1; k <= p.n; ++k) {
+        vec3 v = area_vertex(p, k < p.n ? k : 0);
+        if (diffuse) contour_edge(cd, v, s.N);
+        contour_edge(cl, ltc_apply(T1, T2, s.N, m, v), Z);
+    }
+    F = diffuse && p.n > 0 ? contour_end(cd, s.N) : 0.0;
+    ltc = p.n == 0 ? vec3(0.0) : albedo * contour_end(cl, Z);
+}
+
 #ifdef RECT_TEXTURES
 #include "common/rect_texture_shading.glsl"
 #endif
@@ -241,17 +416,27 @@ bool sphere_reflect_narrow(Light L, Surface s, vec3 Ldir, float dist, float f, v
 }
 
 // sphere_reflect_narrow with the specular blended by ws (area_spec_weight) towards the
-// LTC integral over the sphere's silhouette polygon (built only when ws > 0).
+// LTC integral over the sphere's silhouette polygon (built only when ws > 0; streamed:
+// area_integrals; the exact methods' wide-sphere loop).
 bool sphere_reflect(Light L, Surface s, vec3 Ldir, float dist, float f, float ws, vec3 ssp,
                     out vec3 diff, out vec3 spec) {
     if (!sphere_reflect_narrow(L, s, Ldir, dist, f, ssp, diff, spec)) return false;
     if (ws > 0.0) {
         spec *= 1.0 - ws;
+#ifdef AREA_ARRAY_INTEGRALS  // the array form (tests compare the two)
         vec3 v[AREA_MAXV];
         int n = area_polygon(L, s.P, v);
+        vec3 ltc = ltc_specular(s, v, n);
+#else
+        AreaPoly p;
+        area_poly_setup(L, s.P, p);
+        float unused;
+        vec3 ltc;
+        area_integrals(p, s, false, unused, ltc);  // the LTC integral, streamed
+#endif
         vec3 Lrad = L.intensity.rgb * L.area.w * range_window(dist, L.pos_range.w)
                   * light_tint_rgb(L, -Ldir);
-        spec += ltc_specular(s, v, n) * Lrad * ws;
+        spec += ltc * Lrad * ws;
     }
     return true;
 }
@@ -368,6 +553,52 @@ bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 sp
     if (ws < 1.0) spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * (1.0 - ws);
     if (ws > 0.0) spec += ltc_specular(s, v, n) * Lrad * ws;
     return true;
+}
+
+// light_reflect for the exact methods (light_radiance): the same value, the polygon's
+// form factor and LTC integral streamed in one pass over its vertices (area_integrals:
+// no vertex arrays; only the order of each contour sum differs). A textured rect
+// (RECT_TEXTURES) and a clearcoat keep light_reflect's array path; AREA_ARRAY_INTEGRALS
+// (tests only) takes it for every light.
+bool light_reflect_exact(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 spec) {
+#if defined(RECT_TEXTURES) || defined(AREA_ARRAY_INTEGRALS)
+    return light_reflect(L, s, Ldir, diff, spec);
+#else
+    diff = vec3(0.0); spec = vec3(0.0);
+    float dist;
+    float f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return false;
+    float ext = light_half_extent(L);
+    float ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
+    vec3 dsp, ssp;
+#ifdef HAS_CLEARCOAT
+    if (s.coat > 0.0) {
+        float wc = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.coat_alpha) : 0.0;
+        return area_reflect_coated(L, s, Ldir, dist, f, ws, wc, diff, spec);
+    }
+#endif
+    brdf_eval(s, Ldir, dsp, ssp);
+    if (!light_is_area(L, dist) && ws <= 0.0) {
+        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
+        diff = dsp * E; spec = ssp * E;
+        return true;
+    }
+    bool sphere = L.area.z == AREA_SPHERE;
+    if (sphere && dist <= L.area.x * 1.0001) return false;  // inside: back faces
+    AreaPoly p;
+    int n = area_poly_setup(L, s.P, p);
+    if (n == 0 && !sphere) return false;
+    float window = range_window(dist, L.pos_range.w);
+    vec3 Lrad = L.intensity.rgb * L.area.w * window * light_tint_rgb(L, -Ldir);
+    float Fp;
+    vec3 ltc;
+    area_integrals(p, s, true, Fp, ltc);
+    float F = sphere ? sphere_form_factor(Ldir * dist, L.area.x, s.N) : Fp;
+    diff = s.diffuse * Lrad * F;
+    if (ws < 1.0) spec = ssp * L.intensity.rgb * light_shape_rgb(L, -Ldir) * f * (1.0 - ws);
+    if (ws > 0.0) spec += ltc * Lrad * ws;
+    return true;
+#endif
 }
 
 // Luminance of the unshadowed irradiance (lux) the light gives a surface (P, N), for

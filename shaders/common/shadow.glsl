@@ -198,13 +198,15 @@ bool map_behind(ShadowMap S, vec3 X, bool near_rcv, out float delta) {
     vec2 t;
     delta = -1.0;
     if (!shadow_texel(S, X, t)) return false;
-    float z;
-    if (near_rcv) {
-        vec4 g = textureGather(u_shadow_atlas, (floor(t) + 1.0) * S.params.z, 0);
-        z = max(max(g.x, g.y), max(g.z, g.w));
-    } else {
-        z = texelFetch(u_shadow_atlas, ivec2(floor(t + 0.5)), 0).r;
-    }
+    // One gather serves both: the nearest texel, floor(t + 0.5), is one of the 2x2
+    // (gather order (0,1) (1,1) (1,0) (0,0); t - floor(t) >= 0.5 picks the +1 texel, the
+    // same texel as floor(t + 0.5) for these sizes): on llvmpipe both sides of the
+    // `near_rcv` branch ran, a gather and a texelFetch per lookup.
+    vec2 base = floor(t);
+    vec4 g = textureGather(u_shadow_atlas, (base + 1.0) * S.params.z, 0);
+    bvec2 hi = greaterThanEqual(t - base, vec2(0.5));
+    float nearest = hi.y ? (hi.x ? g.y : g.x) : (hi.x ? g.z : g.w);
+    float z = near_rcv ? max(max(g.x, g.y), max(g.z, g.w)) : nearest;
     // z = 1: nothing within the map's range in that direction: X is in front.
     delta = z < LIM_AREA_SHADOW_EMPTY_DEPTH ? length(X - S.pos_range.xyz) - z * S.pos_range.w : -1.0;
     return true;
@@ -222,20 +224,31 @@ float segment_visibility(Light L, ShadowMap S, vec3 A, vec3 B, float tj) {
     // Within this many metres of the receiver (at the receiver's distance) lookups are
     // the conservative gather-max.
     float rcv = LIM_AREA_SHADOW_RECEIVER_TEXELS * S.params.y;
-    for (int i = 0; i <= LIM_AREA_SHADOW_STEPS; ++i) {
-        float t = i < LIM_AREA_SHADOW_STEPS ? (float(i) + tj) / float(LIM_AREA_SHADOW_STEPS) : 1.0;
-        if (t <= tprev) continue;
-        vec3 X = mix(A, B, t);
-        float dl;
-        map_behind(S, X, (1.0 - t) * len < rcv * length(X - C), dl);
-        if (dl > 0.0 && prev <= 0.0) {
-            float ta = tprev, tb = t, db = dl;
-            for (int k = 0; k < LIM_AREA_SHADOW_REFINE; ++k) {
-                float tm = 0.5 * (ta + tb), dm;
-                vec3 Xm = mix(A, B, tm);
-                map_behind(S, Xm, (1.0 - tm) * len < rcv * length(Xm - C), dm);
-                if (dm > 0.0) { tb = tm; db = dm; } else ta = tm;
-            }
+    // One loop, one lookup an iteration: a march sample (k < 0) or a bisection step k of
+    // the transition found there. The same lookups in the same order per pixel as a
+    // march loop with the bisection nested in an `if` -- whose body (a loop of its own
+    // and the block test) llvmpipe ran at every march step of the whole SIMD group.
+    int i = 0;                                  // next march sample
+    int k = -1;                                 // bisection step (-1: marching)
+    float t = 0.0, dl = -1.0, ta = 0.0, tb = 0.0, db = 0.0;
+    for (int it = 0; it < (LIM_AREA_SHADOW_STEPS + 1) * (LIM_AREA_SHADOW_REFINE + 1); ++it) {
+        if (k < 0) {
+            if (i > LIM_AREA_SHADOW_STEPS) break;
+            t = i < LIM_AREA_SHADOW_STEPS ? (float(i) + tj) / float(LIM_AREA_SHADOW_STEPS) : 1.0;
+            if (t <= tprev) { ++i; continue; }
+        }
+        float tq = k < 0 ? t : 0.5 * (ta + tb);
+        vec3 X = mix(A, B, tq);
+        float d;
+        map_behind(S, X, (1.0 - tq) * len < rcv * length(X - C), d);
+        if (k < 0) {
+            dl = d;
+            if (dl > 0.0 && prev <= 0.0) { ta = tprev; tb = t; db = dl; k = 0; }
+        } else {
+            if (d > 0.0) { tb = tq; db = d; } else ta = tq;
+            ++k;
+        }
+        if (k == LIM_AREA_SHADOW_REFINE) {     // the transition refined: a block?
             vec3 Xb = mix(A, B, tb);
             float thick = LIM_AREA_SHADOW_THICK_TEXELS * S.params.y * length(Xb - C)
                         + LIM_AREA_SHADOW_THICK_STEPS * (tb - ta) * len;
@@ -249,9 +262,13 @@ float segment_visibility(Light L, ShadowMap S, vec3 A, vec3 B, float tj) {
                     : (to_occ > maxd ? 1.0 : 0.0);
                 if (fade < 1.0) return fade;
             }
+            k = -1;
         }
-        prev = dl;
-        tprev = t;
+        if (k < 0) {
+            prev = dl;
+            tprev = t;
+            ++i;
+        }
     }
     return 1.0;
 }
@@ -424,13 +441,19 @@ vec3 local_shadow_hard(Light L, vec3 P, vec3 N) { return vec3(1.0); }
 // Shadowed radiance (nits) light L reflects towards s.V: the exact methods' per-light
 // term (reference, tiled, clustered, lighttree). Area lights are integrated over their
 // area (common/area.glsl); the shadow lookup is skipped where nothing is reflected.
-vec3 light_radiance(Light L, Surface s) {
+vec3 light_radiance_impl(Light L, Surface s, const bool shadowed) {
     vec3 Ldir, d, sp;
-    if (!light_reflect(L, s, Ldir, d, sp)) return vec3(0.0);
+    if (!light_reflect_exact(L, s, Ldir, d, sp)) return vec3(0.0);
     vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
-    return c * local_shadow(L, s.P, s.N);
+    return shadowed ? c * local_shadow(L, s.P, s.N) : c;
 }
+vec3 light_radiance(Light L, Surface s) { return light_radiance_impl(L, s, true); }
+// light_radiance for a light without a shadow map (ies_shadow.z < 0: local_shadow is 1,
+// the same value) with the shadow code left out: the exact methods' loops over the
+// lights without shadows (SPLIT_UNSHADOWED, light_buffer.unshadowed_first; on llvmpipe
+// a loop's shadow code runs for every light of the SIMD group, shadowed or not).
+vec3 light_radiance_unshadowed(Light L, Surface s) { return light_radiance_impl(L, s, false); }
 
 // light_radiance for a sphere light (L.area.z == AREA_SPHERE: radius > 0, not
 // treatAsPoint) with only the sphere's code: the point model, or the closed-form diffuse
@@ -441,7 +464,7 @@ vec3 light_radiance(Light L, Surface s) {
 // renderer/light_buffer.narrow_spheres), so the LTC code is left out; on llvmpipe a
 // branch's body runs even where no lane takes it. The exact methods loop over their
 // sphere lights with light_radiance_sphere_narrow / light_radiance_sphere_wide.
-vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow) {
+vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow, const bool shadowed) {
 #ifdef HAS_CLEARCOAT
     if (s.coat > 0.0) return light_radiance(L, s);
 #endif
@@ -463,13 +486,20 @@ vec3 light_radiance_sphere_impl(Light L, Surface s, const bool narrow) {
     }
     vec3 c = (d * L.misc.z + sp * L.misc.w) * light_shape_scalar(L, -Ldir);
     if (c.r + c.g + c.b <= 0.0) return vec3(0.0);
-    return c * local_shadow(L, s.P, s.N);
+    return shadowed ? c * local_shadow(L, s.P, s.N) : c;
 }
 vec3 light_radiance_sphere_narrow(Light L, Surface s) {
-    return light_radiance_sphere_impl(L, s, true);
+    return light_radiance_sphere_impl(L, s, true, true);
 }
 vec3 light_radiance_sphere_wide(Light L, Surface s) {
-    return light_radiance_sphere_impl(L, s, false);
+    return light_radiance_sphere_impl(L, s, false, true);
+}
+// The same for sphere lights without a shadow map (light_radiance_unshadowed).
+vec3 light_radiance_sphere_narrow_unshadowed(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, true, false);
+}
+vec3 light_radiance_sphere_wide_unshadowed(Light L, Surface s) {
+    return light_radiance_sphere_impl(L, s, false, false);
 }
 
 // light_radiance for light i of the light buffer, a light without extent

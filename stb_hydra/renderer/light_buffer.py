@@ -90,6 +90,27 @@ def by_light_model(
     return out, counts[0], counts[1], counts[2]
 
 
+def unshadowed_first(
+    table: LightTable, rows: np.ndarray, point_count: int, sphere_count: int
+) -> tuple[np.ndarray, int, int]:
+    """``rows`` in :func:`by_light_model`'s order with its narrow-sphere part
+    (``rows[point_count:point_count + sphere_count]``) and the part after it (wide
+    spheres and the rest) each stably partitioned: lights without shadows
+    (``shadow_enable`` false: never given a shadow map) first. Returns the rows and how
+    many lights without shadows open each of the two parts. The exact methods loop over
+    those with the shadow code left out (``SPLIT_UNSHADOWED``, issue 34: on llvmpipe the
+    shadow code of a light loop runs for every light, shadowed or not). Each pixel still
+    sums its lights in buffer order."""
+    a, b = point_count, point_count + sphere_count
+    counts = []
+    parts = [rows[:a]]
+    for part in (rows[a:b], rows[b:]):
+        off = ~table.shadow_enable[part]
+        counts.append(int(np.count_nonzero(off)))
+        parts += [part[off], part[~off]]
+    return np.concatenate(parts), counts[0], counts[1]
+
+
 def narrow_spheres(
     table: LightTable,
     rows: np.ndarray,

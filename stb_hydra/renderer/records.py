@@ -58,11 +58,21 @@ class InViewLights:
     #: focus ``pow`` left out of ``light_tint_rgb``: on llvmpipe an ``if`` body runs for
     #: every light, issue 34).
     has_focus: bool = True
+    #: Some of them is a CylinderLight shaded as one (area kind ``AREA_CYLINDER``). True
+    #: unless the producer checked: without it, methods compile ``NO_CYLINDER_LIGHTS``
+    #: (the cylinder's vertices and their per-vertex ``cos`` / ``sin`` left out of the
+    #: exact methods' streamed polygon, common/area.glsl).
+    has_cylinders: bool = True
     #: Some of them is a textured RectLight (``RECT_TEXTURES``).
     has_rect_textures: bool = False
     point_count: int = 0
     sphere_count: int = 0
     wide_sphere_count: int = 0
+    #: The first ``sphere_unshadowed`` narrow spheres, and the first ``tail_unshadowed``
+    #: lights after them (wide spheres and the rest), have no shadows
+    #: (``light_buffer.unshadowed_first``; 0 when the order is not split).
+    sphere_unshadowed: int = 0
+    tail_unshadowed: int = 0
 
     @property
     def count(self) -> int:

@@ -255,6 +255,8 @@ class LightingMethod:
                 defines["HAS_CONES"] = True
             if not lights.has_focus:
                 defines["NO_FOCUS"] = True  # no focusTint pow (common/lights.glsl)
+            if not lights.has_cylinders:
+                defines["NO_CYLINDER_LIGHTS"] = True  # common/area.glsl's streamed polygon
             if self.points_first:
                 self.light_models |= light_models(lights)
                 for m in light_loops(self.light_models, self.clearcoat):
@@ -265,6 +267,10 @@ class LightingMethod:
                     defines["RECT_TEXTURE_EXACT"] = True
             if frame.get(LightBuffer).has_shadows:
                 defines["HAS_SHADOWS"] = True
+                if self.points_first and not self.clearcoat:
+                    # the lights without shadows of each loop's part in a loop without
+                    # the shadow code (light_buffer.unshadowed_first, u_*_unshadowed_end)
+                    defines["SPLIT_UNSHADOWED"] = True
                 if frame.settings.shadow_filter == "stochastic":
                     defines["STOCHASTIC_PCF"] = True
                 if self.area_shadows_per_frame:
@@ -290,6 +296,8 @@ class LightingMethod:
             set_uniform(prog, "u_point_lights", iv.point_count)
             set_uniform(prog, "u_sphere_end", end)
             set_uniform(prog, "u_wide_sphere_end", end + iv.wide_sphere_count)
+            set_uniform(prog, "u_sphere_unshadowed_end", iv.point_count + iv.sphere_unshadowed)
+            set_uniform(prog, "u_tail_unshadowed_end", end + iv.tail_unshadowed)
         lb = frame.get(LightBuffer)
         if lb.ssbo is not None:
             lb.ssbo.bind_to_storage_buffer(SSBO_LIGHTS)

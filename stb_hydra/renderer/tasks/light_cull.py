@@ -12,7 +12,7 @@ from ...scene.prims import CONE_CUTOFF_TEST_RAD
 from .. import shader_constants as sc
 from ..frame import FrameContext
 from ..graph import Imported, Rec
-from ..light_buffer import by_light_model, cull_lights, narrow_spheres
+from ..light_buffer import by_light_model, cull_lights, narrow_spheres, unshadowed_first
 from ..material_binding import alpha_floor
 from ..records import InViewLights
 from .base import Pass
@@ -42,22 +42,28 @@ class LightCullTask(Pass):
         t = self.delegate.light_table
         rows = cull_lights(t, frame.view.frustum_planes())
         rows = rows[~t.baked[rows]]  # baked lights come from the lightmaps (tasks/lightmap.py)
-        point_count = sphere_count = wide_count = 0
+        point_count = sphere_count = wide_count = sphere_unshadowed = tail_unshadowed = 0
         if self.points_first:
             narrow = None
             if np.any(t.area_kind[rows] == sc.AREA_SPHERE):
                 narrow = self._narrow(rows)
             rows, point_count, sphere_count, wide_count = by_light_model(t, rows, narrow)
+            rows, sphere_unshadowed, tail_unshadowed = unshadowed_first(
+                t, rows, point_count, sphere_count
+            )
         frame.put(
             InViewLights(
                 rows=rows,
                 has_cones=bool(np.any(t.cone_cutoff[rows] < np.float32(CONE_CUTOFF_TEST_RAD))),
                 has_ies=bool(np.any(t.ies_layer[rows] >= 0)),
                 has_focus=bool(np.any(t.focus[rows] > 0)),
+                has_cylinders=bool(np.any(t.area_kind[rows] == sc.AREA_CYLINDER)),
                 has_rect_textures=bool(np.any(t.texture_layer[rows] >= 0)),
                 point_count=point_count,
                 sphere_count=sphere_count,
                 wide_sphere_count=wide_count,
+                sphere_unshadowed=sphere_unshadowed,
+                tail_unshadowed=tail_unshadowed,
             )
         )
         frame.stats["fov_lights"] = len(rows)
