@@ -10,15 +10,16 @@
 // common/lighting_out.glsl's write_lighting (not used with RECT_EMITTERS_SEEN).
 uniform int u_list_width;
 
-// The list entry of this fragment (before gl_FragCoord is redefined below).
+// The list entry of this fragment.
 uint reuse_area_entry() {
     ivec2 f = ivec2(gl_FragCoord.xy);
     return uint(f.y) * uint(u_list_width) + uint(f.x);
 }
 
-// The listed pixel: common/shadow.glsl's per-pixel hashes read gl_FragCoord.
+// The listed pixel: common/shadow.glsl's per-pixel hashes are that pixel's (a macro
+// named gl_FragCoord would use a reserved name, GLSL 4.30 sections 3.3 and 3.7).
 ivec2 g_px = ivec2(0);
-#define gl_FragCoord vec4(vec2(g_px) + 0.5, 0.5, 1.0)
+#define SHADOW_PIXEL (vec2(g_px) + 0.5)
 
 #include "common/gbuffer.glsl"
 #include "common/lights.glsl"

@@ -9,6 +9,13 @@
 #include "common/lights.glsl"
 #include "common/octahedral.glsl"
 
+// The window position (px) of the pixel whose per-pixel hashes (stochastic PCF, the
+// area-shadow point shift) these are: the fragment's own, unless a pass that shades a
+// listed pixel elsewhere (stb_reuse_area.frag) defines SHADOW_PIXEL to it first.
+#ifndef SHADOW_PIXEL
+#define SHADOW_PIXEL gl_FragCoord.xy
+#endif
+
 #ifdef HAS_SHADOWS
 struct ShadowMap {
     mat4 view_proj;   // spot: captured world -> clip
@@ -399,7 +406,7 @@ vec3 local_shadow_impl(Light L, vec3 P, vec3 N, vec2 jitter, bool soft, vec2 u0)
 uniform float u_area_shadow_index;
 #endif
 vec2 area_shadow_shift() {
-    uvec2 q = uvec2(gl_FragCoord.xy);
+    uvec2 q = uvec2(SHADOW_PIXEL);
     uint h = q.x * 1973u + q.y * 9277u + 0x68e31da4u;
 #if defined(AREA_SHADOW_SEQUENCE)
     h += uint(u_area_shadow_index) * 26699u;
@@ -423,7 +430,7 @@ vec3 local_shadow(Light L, vec3 P, vec3 N) {
 #ifdef STOCHASTIC_PCF
     // Stochastic PCF: one random sub-texel offset (+-0.5 texel) per pixel and frame
     // on top of the 4-tap gather -- softer edges for the same single gather.
-    uvec2 q = uvec2(gl_FragCoord.xy);
+    uvec2 q = uvec2(SHADOW_PIXEL);
     uint h = q.x * 1973u + q.y * 9277u + uint(u_clip.z) * 26699u;
     h ^= h >> 15; h *= 0x2c1b3c6du; h ^= h >> 12; h *= 0x297a2d39u; h ^= h >> 15;
     vec2 j = vec2(float(h & 0xffffu), float(h >> 16)) / 65536.0 - 0.5;
