@@ -76,3 +76,38 @@ def test_split_loops_equal_the_loops_with_shadow_code(gl_ctx, monkeypatch):
     assert iv.tail_unshadowed < iv.count - iv.point_count - iv.sphere_count
     assert float(plain.max()) > 0.0
     np.testing.assert_array_equal(split, plain)
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("method", ["reference", "tiled"])
+def test_shadows_switched_off_are_gone_in_the_next_frame(gl_ctx, method):
+    """A light whose ``shadow:enable`` is edited off keeps its atlas map until the
+    atlas forgets it, but no method may read that map from the next frame on: the
+    reference shades it in its loop without shadow code, tiled from its record; both
+    equal a fresh engine of the edited stage."""
+    from pxr import UsdLux
+
+    (case,) = parse_scene("gen:lights:40:shadow_fraction=1")
+    stage = case.build()
+    opts = {"tile_cap": None} if method == "tiled" else {}
+    settings = dict(width=64, height=36, lighting=method, method_options=opts)
+    eng = Engine(stage, RenderSettings(**settings))
+    try:
+        shadowed = eng.render()
+        before = eng.aovs["color"][..., :3].copy()
+        for prim in stage.Traverse():
+            if prim.HasAPI(UsdLux.ShadowAPI):
+                UsdLux.ShadowAPI(prim).CreateShadowEnableAttr(False)
+        eng.render()
+        after = eng.aovs["color"][..., :3].copy()
+    finally:
+        eng.release()
+    assert shadowed is not None
+    fresh = Engine(stage, RenderSettings(**settings))
+    try:
+        fresh.render()
+        want = fresh.aovs["color"][..., :3].copy()
+    finally:
+        fresh.release()
+    assert not np.array_equal(before, want)  # the shadows did show before the edit
+    np.testing.assert_array_equal(after, want)

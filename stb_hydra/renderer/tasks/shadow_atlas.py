@@ -407,7 +407,10 @@ class ShadowAtlasTask(Pass):
             self._slot_valid[s] = True
 
     def _slots_for(self, rows: np.ndarray) -> np.ndarray:
-        """Record slot per in-view row (float32 for the light record; -1: none)."""
+        """Record slot per in-view row (float32 for the light record; -1: none). A light
+        whose shadows were switched off has none from that frame on, though its map
+        is only forgotten later (``_forget_gone``): every method then shades it
+        unshadowed at once, as the reference's loops without shadow code do."""
         self._slot_of_row[:] = -1
         if self._slot_of:
             keys = list(self._slot_of)
@@ -415,7 +418,10 @@ class ShadowAtlasTask(Pass):
             rr = np.fromiter((self._row_of[k] for k in keys), dtype=np.int64, count=len(keys))
             v = self._slot_valid[slots]
             self._slot_of_row[rr[v]] = slots[v]
-        return self._slot_of_row[rows].astype(np.float32) if len(rows) else np.zeros(0, np.float32)
+        if not len(rows):
+            return np.zeros(0, np.float32)
+        on = self.delegate.light_table.shadow_enable[rows]
+        return np.where(on, self._slot_of_row[rows], -1).astype(np.float32)
 
     def _reserve_records_buffer(self, frame: FrameContext) -> None:
         nbytes = max(len(self._slot_rect), 1) * RECORD_FLOATS * 4
