@@ -769,3 +769,7 @@ RECEIVER_LEAF_CACHE_MESHES = 512
 #: mesh's instances keep one box each (the mesh AABB): bounds the per-frame cost of
 #: the (lights x boxes) distance test.
 RECEIVER_BOXES_MAX = 4096
+
+#: ``stb preview --script``'s ``{"wait_file": PATH}``: the longest wait (s) for the file;
+#: past it the script goes on with a warning (a driver that died must not hang a test).
+PREVIEW_WAIT_FILE_MAX_S = 120.0

@@ -165,6 +165,7 @@ def test_script_parses_every_event_kind(tmp_path):
         ([{"light": "/L"}], "'light' needs at least one of"),
         ([{"light": "/L", "color": [1, 2]}], "'color' must be [r, g, b]"),
         ([{"screenshot": 3}], "bad value 3 for 'screenshot'"),
+        ([{"wait_file": 1}], "bad value 1 for 'wait_file'"),
         ([{"wait": 1, "speed": 2}], "unexpected key(s) 'speed'"),
         ({"wait": 1}, "expected a list of events"),
     ],

@@ -78,9 +78,9 @@ def _start(display, args, tmp: Path, events=None) -> subprocess.Popen:
     )
 
 
-def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tuple[int, str]:
-    """Read the previewer's stdout up to ``mark NAME`` (at most ``timeout`` s); returns
-    the X window id and the selected prim path."""
+def _wait_line(proc: subprocess.Popen, prefix: str, timeout: float = 90.0) -> str:
+    """Read the previewer's stdout up to a line starting with ``prefix`` (at most
+    ``timeout`` s) and return it (the lines before it are dropped)."""
     import selectors
 
     assert proc.stdout is not None
@@ -93,12 +93,19 @@ def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tupl
         line = proc.stdout.readline()
         if not line:  # the previewer exited
             break
-        if line.startswith(f"stb preview: mark {name} "):
-            fields = dict(f.split("=", 1) for f in line.split()[4:])
-            return int(fields["window"], 16), fields["selected"]
+        if line.startswith(prefix):
+            return line
     proc.kill()
     _, err = proc.communicate(timeout=30)
-    raise AssertionError(f"no 'mark {name}' from the previewer within {timeout} s: {err}")
+    raise AssertionError(f"no {prefix!r} from the previewer within {timeout} s: {err}")
+
+
+def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tuple[int, str]:
+    """Read the previewer's stdout up to ``mark NAME`` (at most ``timeout`` s); returns
+    the X window id and the selected prim path."""
+    line = _wait_line(proc, f"stb preview: mark {name} ", timeout)
+    fields = dict(f.split("=", 1) for f in line.split()[4:])
+    return int(fields["window"], 16), fields["selected"]
 
 
 def _finish(proc: subprocess.Popen, timeout: float = 90.0) -> tuple[int, str, str]:
@@ -161,7 +168,7 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
         {"method": "stb"},
         {"wait": "converged"},
         {"mark": "ready"},
-        {"sleep": 4},
+        {"wait_file": str(tmp_path / "captured")},  # until the test's xdotool and xwd ran
     ]
     snap = tmp_path / "snap.png"
     args = [scene, "--width", W, "--height", H, "--max-samples", 8, "--no-ui"]
@@ -177,6 +184,7 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
         capture_output=True,
         check=True,
     ).stdout
+    (tmp_path / "captured").touch()
     code, out, err = _finish(proc)
     assert code == 0, err
     assert "Traceback" not in err
@@ -206,11 +214,15 @@ def test_scripted_window_orbit_method_light_and_snapshot_equals_window(display, 
 def test_click_picks_and_alt_drag_tumbles_with_xdotool(display, scene, tmp_path):
     """Real mouse input: a click on the box selects it (ID buffer); Alt + left drag
     orbits the camera."""
+    go = tmp_path / "input_sent"
     events = [
         {"wait": "converged"},
         {"screenshot": "before.png"},
         {"mark": "ready"},
-        {"sleep": 3},
+        # The window takes input until the test says it has sent it all (a fixed sleep
+        # here raced the xdotool processes on a loaded machine: the window had closed).
+        {"wait_file": str(go)},
+        {"sleep": 0.5},  # the last X events reach the window
         {"wait": "converged"},
         {"screenshot": "after.png"},
         {"mark": "done"},
@@ -229,6 +241,7 @@ def test_click_picks_and_alt_drag_tumbles_with_xdotool(display, scene, tmp_path)
     for _ in range(4):
         _xdo(display, "mousemove_relative", "--", "20", "0")
     _xdo(display, "mouseup", "1", "keyup", "alt")
+    go.touch()
     _, selected = _wait_mark(proc, "done")
     assert selected == "/Box"
     code, _, err = _finish(proc)
@@ -256,9 +269,10 @@ def test_broken_stage_opens_once_fixed_on_disk(display, tmp_path):
     a good stage to it opens it in the same window."""
     path = tmp_path / "later.usda"
     path.write_text("#usda 1.0\ndef Mesh (\n")
+    go = tmp_path / "reopened"
     events = [
         {"mark": "broken"},
-        {"sleep": 4},
+        {"wait_file": str(go)},  # until the test saw the stage reopened (no fixed sleep)
         {"wait": "converged"},
         {"screenshot": "fixed.png"},
         {"quit": True},
@@ -267,9 +281,10 @@ def test_broken_stage_opens_once_fixed_on_disk(display, tmp_path):
     proc = _start(display, [*args, "--lighting", "reference"], tmp_path, events)
     _wait_mark(proc, "broken")
     path.write_text(TWO_LIGHTS_USDA)
-    code, out, err = _finish(proc)
+    _wait_line(proc, f"stb preview: opened {path}")
+    go.touch()
+    code, _out, err = _finish(proc)
     assert code == 0, err
-    assert f"stb preview: opened {path}" in out
     assert "line 2, column 1" in err and len(err.strip().splitlines()) == 1
     assert _png(tmp_path / "fixed.png").mean() > 10.0  # the stage, not the error
 

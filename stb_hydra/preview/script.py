@@ -8,6 +8,11 @@ event takes effect before the next frame is rendered:
 ``{"wait": N}``                                    render N frames
 ``{"wait": "converged"}``                          render until ``--max-samples`` is reached
 ``{"sleep": S}``                                   wait S seconds (the window stays open)
+``{"wait_file": PATH}``                            wait until PATH exists (the window open,
+                                                   taking input; at most
+                                                   ``limits.PREVIEW_WAIT_FILE_MAX_S``): an
+                                                   outside driver's "go on" (e.g. after
+                                                   xdotool input), instead of a race
 ``{"orbit": [dx, dy]}``                            tumble by a drag of (dx, dy) pixels
 ``{"track": [dx, dy]}``                            track (pan) by (dx, dy) pixels
 ``{"dolly": px}``                                  dolly by a drag of px pixels (+ = closer)
@@ -45,6 +50,7 @@ _NUM = (int, float)
 EVENT_TYPES: dict[str, tuple[type, ...]] = {
     "wait": (int, str),
     "sleep": _NUM,
+    "wait_file": (str,),
     "orbit": (list,),
     "track": (list,),
     "dolly": _NUM,

@@ -23,6 +23,7 @@ import glfw
 import moderngl
 import numpy as np
 
+from .. import limits
 from ..renderer.frame import RenderSettings
 from ..renderer.gl import use_context
 from .script import Event, ScriptError
@@ -234,6 +235,8 @@ class PreviewApp:
         self._wait = 0
         self._wait_converged = False
         self._sleep_until = 0.0
+        #: ``{"wait_file": PATH}`` in progress: (the path, the deadline, perf_counter s).
+        self._wait_file: tuple[str, float] | None = None
         self._ticks_after_script = 0
         self._shots: list[str] = []
         self._last_input = 0.0
@@ -466,13 +469,30 @@ class PreviewApp:
 
     # -- script --
     def _script_busy(self) -> bool:
-        return bool(self._events or self._wait or self._wait_converged or self._sleep_until)
+        return bool(
+            self._events
+            or self._wait
+            or self._wait_converged
+            or self._sleep_until
+            or self._wait_file
+        )
 
     def _run_script(self) -> None:
         if self._sleep_until:
             if time.perf_counter() < self._sleep_until:
                 return
             self._sleep_until = 0.0
+        if self._wait_file is not None:
+            path, deadline = self._wait_file
+            if not Path(path).exists():
+                if time.perf_counter() < deadline:
+                    return
+                self._report(
+                    f"script: {path} did not appear within "
+                    f"{limits.PREVIEW_WAIT_FILE_MAX_S:g} s; going on",
+                    True,
+                )
+            self._wait_file = None
         if self._wait_converged:
             if not (self.session.converged or not self.session.ok):
                 return
@@ -480,7 +500,9 @@ class PreviewApp:
         if self._wait:
             self._wait -= 1
             return
-        while self._events and not (self._wait or self._wait_converged or self._sleep_until):
+        while self._events and not (
+            self._wait or self._wait_converged or self._sleep_until or self._wait_file
+        ):
             ev = self._events.pop(0)
             if ev.kind == "screenshot" and self._shots:
                 self._events.insert(0, ev)  # one per drawn frame: the state at this point
@@ -501,6 +523,8 @@ class PreviewApp:
                 self._wait = int(v)
         elif k == "sleep":
             self._sleep_until = time.perf_counter() + float(v)
+        elif k == "wait_file":
+            self._wait_file = (str(v), time.perf_counter() + limits.PREVIEW_WAIT_FILE_MAX_S)
         elif k == "orbit":
             s.tumble(*v)
         elif k == "track":
@@ -638,7 +662,7 @@ class PreviewApp:
             busy = self._script_busy() or opts.snapshot is not None
             now = time.perf_counter()
             idle = self.session.converged or not self.session.ok  # nothing to render
-            if self._sleep_until and idle:
+            if (self._sleep_until or self._wait_file) and idle:
                 glfw.wait_events_timeout(0.05)  # a scripted sleep: no need to spin
             elif busy or not idle or now - self._last_input < UI_ACTIVE_S:
                 glfw.poll_events()
