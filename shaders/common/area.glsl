@@ -499,28 +499,46 @@ bool area_reflect_coated(Light L, Surface s, vec3 Ldir, float dist, float f, flo
 // (cone x normalised IES) -- the caller multiplies by light_shape_scalar(L, -Ldir).
 // Ldir: unit direction from P to the light's centre. False when the light cannot
 // reach P (out of range, behind a one-sided emitter, nothing visible).
-bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 spec) {
-    diff = vec3(0.0); spec = vec3(0.0);
-    float dist;
-    float f = light_falloff(L, s.P, Ldir, dist);
-    if (f <= 0.0) return false;
+// What light_reflect_head decided: the light does not reach P (false), the answer is
+// complete (the point model or the clearcoat path: true), or the area path follows.
+const int REFLECT_NONE = 0;
+const int REFLECT_DONE = 1;
+const int REFLECT_AREA = 2;
+
+// The part light_reflect and light_reflect_exact share: the falloff, the specular LTC
+// weight ws, the clearcoat path, the BRDF's specular factor ssp and the point model.
+// For REFLECT_AREA, dist (m), f, ws and ssp are set and diff = spec = 0.
+int light_reflect_head(Light L, Surface s, out vec3 Ldir, out float dist, out float f,
+                       out float ws, out vec3 ssp, out vec3 diff, out vec3 spec) {
+    diff = vec3(0.0); spec = vec3(0.0); ssp = vec3(0.0); ws = 0.0;
+    f = light_falloff(L, s.P, Ldir, dist);
+    if (f <= 0.0) return REFLECT_NONE;
     float ext = light_half_extent(L);
     // Specular LTC weight (0 when the light has no specular: nothing to integrate).
-    float ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
-    vec3 dsp, ssp;
+    ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
+    vec3 dsp;
 #ifdef HAS_CLEARCOAT
     // The coat lobe has its own width: its own point/LTC weight.
     if (s.coat > 0.0) {
         float wc = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.coat_alpha) : 0.0;
-        return area_reflect_coated(L, s, Ldir, dist, f, ws, wc, diff, spec);
+        bool lit = area_reflect_coated(L, s, Ldir, dist, f, ws, wc, diff, spec);
+        return lit ? REFLECT_DONE : REFLECT_NONE;
     }
 #endif
     brdf_eval(s, Ldir, dsp, ssp);
     if (!light_is_area(L, dist) && ws <= 0.0) {
         vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
         diff = dsp * E; spec = ssp * E;
-        return true;
+        return REFLECT_DONE;
     }
+    return REFLECT_AREA;
+}
+
+bool light_reflect(Light L, Surface s, out vec3 Ldir, out vec3 diff, out vec3 spec) {
+    float dist, f, ws;
+    vec3 ssp;
+    int head = light_reflect_head(L, s, Ldir, dist, f, ws, ssp, diff, spec);
+    if (head != REFLECT_AREA) return head == REFLECT_DONE;
     // A sphere's diffuse is its closed form (sphere_form_factor), so it needs the
     // silhouette polygon only for the LTC specular; the other models integrate theirs.
     // One polygon and one LTC call serve both (each is inlined code: issue 34).
@@ -564,25 +582,10 @@ bool light_reflect_exact(Light L, Surface s, out vec3 Ldir, out vec3 diff, out v
 #if defined(RECT_TEXTURES) || defined(AREA_ARRAY_INTEGRALS)
     return light_reflect(L, s, Ldir, diff, spec);
 #else
-    diff = vec3(0.0); spec = vec3(0.0);
-    float dist;
-    float f = light_falloff(L, s.P, Ldir, dist);
-    if (f <= 0.0) return false;
-    float ext = light_half_extent(L);
-    float ws = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.alpha) : 0.0;
-    vec3 dsp, ssp;
-#ifdef HAS_CLEARCOAT
-    if (s.coat > 0.0) {
-        float wc = L.misc.w != 0.0 ? area_spec_weight(ext, dist, s.coat_alpha) : 0.0;
-        return area_reflect_coated(L, s, Ldir, dist, f, ws, wc, diff, spec);
-    }
-#endif
-    brdf_eval(s, Ldir, dsp, ssp);
-    if (!light_is_area(L, dist) && ws <= 0.0) {
-        vec3 E = L.intensity.rgb * light_shape_rgb(L, -Ldir) * f;
-        diff = dsp * E; spec = ssp * E;
-        return true;
-    }
+    float dist, f, ws;
+    vec3 ssp;
+    int head = light_reflect_head(L, s, Ldir, dist, f, ws, ssp, diff, spec);
+    if (head != REFLECT_AREA) return head == REFLECT_DONE;
     bool sphere = L.area.z == AREA_SPHERE;
     if (sphere && dist <= L.area.x * 1.0001) return false;  // inside: back faces
     AreaPoly p;
