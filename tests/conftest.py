@@ -15,6 +15,14 @@ import stb_hydra  # noqa: F401  (registers the codeless USD schema before any st
 # any GL context; a GALLIVM_PERF already in the environment (even empty: optimised)
 # wins, and the CLI subprocesses inherit it. No effect on GPU drivers. docs/TESTING.md.
 os.environ.setdefault("GALLIVM_PERF", "nopt")
+# Under ``pytest -n N`` with at least one worker per core, each worker's llvmpipe draws on
+# its own thread instead of starting one rasterizer thread per core (N x cores threads
+# on the cores): the warm suite on the 2-core machine took 346 s instead of 398 s, user
+# time 584 s instead of 675 s (docs/TESTING.md, run 7). Images do not depend on it. An
+# LP_NUM_THREADS already in the environment wins; GPU drivers ignore it.
+_workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
+if _workers >= 2 and _workers >= (os.cpu_count() or 1):
+    os.environ.setdefault("LP_NUM_THREADS", "0")
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
