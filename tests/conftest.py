@@ -17,9 +17,10 @@ import stb_hydra  # noqa: F401  (registers the codeless USD schema before any st
 os.environ.setdefault("GALLIVM_PERF", "nopt")
 # Under ``pytest -n N`` with at least one worker per core, each worker's llvmpipe draws on
 # its own thread instead of starting one rasterizer thread per core (N x cores threads
-# on the cores): the warm suite on the 2-core machine took 346 s instead of 398 s, user
-# time 584 s instead of 675 s (docs/TESTING.md, run 7). Images do not depend on it. An
-# LP_NUM_THREADS already in the environment wins; GPU drivers ignore it.
+# on the cores): on the 2-core machine, warm, 346 s instead of 398 s in one pytest run and
+# 390 s instead of 399 s through `make test` (docs/TESTING.md, runs 7 and 8). Images do
+# not depend on it. An LP_NUM_THREADS already in the environment wins; GPU drivers
+# ignore it.
 _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
 if _workers >= 2 and _workers >= (os.cpu_count() or 1):
     os.environ.setdefault("LP_NUM_THREADS", "0")
