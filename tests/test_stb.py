@@ -147,7 +147,9 @@ def test_big_tile_inclusion_frequencies_match_a_chao(gl_ctx):
         for i in range(n)
     )
     stage = usda_stage(USDA_HEADER + FACING + lights)
-    eng = stb_engine(stage, 128, 128, K=K, N=1)
+    # One 32 px big tile over a 32x32 image: the same view (and tile centre) as one
+    # 128 px tile over 128x128, 1/16 of the pixels to shade each frame.
+    eng = stb_engine(stage, 32, 32, K=K, N=1, big_tile=32)
     try:
         counts = np.zeros(n)
         for _ in range(frames):
