@@ -96,7 +96,7 @@ OPTIONS = Schema(
         range=(1, limits.SMALL_TILE_SAMPLES_MAX),
         doc="samples per small tile",
     ),
-    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(32, 64, 128, 256), doc="big tile, px"),
+    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(16, 32, 64, 128, 256), doc="big tile, px"),
     Opt(
         "small_tile",
         int,
