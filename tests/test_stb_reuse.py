@@ -442,6 +442,15 @@ def shadowed_scene() -> str:
         {"reuse_candidates": 4, "reuse_k": 0, "reuse_res": "share", "reuse_temporal": "on"},
         {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
         {"reuse_candidates": 16, "reuse_target": "tile", "reuse_shadow_floor": 0.1},
+        # 16 px big tiles (the slots' 2 x 2 grid), shared quad and per pixel
+        {
+            "reuse_candidates": 64,
+            "reuse_k": 0,
+            "reuse_res": "share",
+            "reuse_target": "tile",
+            "big_tile": 16,
+        },
+        {"reuse_candidates": 32, "reuse_target": "tile", "big_tile": 16},
     ],
 )
 def test_no_nan_or_inf(gl_ctx, opts):
