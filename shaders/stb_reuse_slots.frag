@@ -4,7 +4,8 @@
 // target that costs the most per candidate on llvmpipe (an IES texture lookup, a branch
 // per light type that every lane runs) -- is evaluated once per slot, towards the
 // maximum over a grid of the G-buffer's surface points of the pixels that may use the
-// tile (LIM_REUSE_SLOT_GRID^2, over the tile +- half a tile) and the tile's central
+// tile (STB_REUSE_SLOT_GRID^2 from stb_reuse.slot_grid: 4 x 4 for 32 px tiles and up,
+// 2 x 2 for 16 px; over the tile +- half a tile) and the tile's central
 // segment's point nearest the light, floored at LIM_REUSE_SLOT_SHAPE_FLOOR so the
 // target stays > 0 wherever the light may reach a pixel (unbiased). The cone and the
 // IES table are left to the pixel, in cos space from a third texel (o_axis: no acos; a
@@ -90,7 +91,7 @@ void main() {
     float t = clamp(dot(L.pos_range.xyz - A, ab) / max(dot(ab, ab), 1e-12), 0.0, 1.0);
     vec3 Xbest = A + t * ab;
     float shape = slot_shape(L, Xbest, ies_pixel);
-    const int G = LIM_REUSE_SLOT_GRID;
+    const int G = STB_REUSE_SLOT_GRID;
     vec2 lo = (vec2(tile) - 0.5) * float(u_big_px);
     float step_px = 2.0 * float(u_big_px) / float(G);
     for (int gy = 0; gy < G; ++gy) {

@@ -501,6 +501,9 @@ STB_BIGTILE_SHAPE_FLOOR = 0.1
 #: stochastic bilinear selection), floored at a fraction of its peak so it stays > 0
 #: wherever the light may reach a pixel between the points (unbiased).
 STB_REUSE_SLOT_GRID = 4
+#: ... with its points at least this far apart (px): a 2 x 2 grid for 16 px big tiles
+#: (``stb_reuse.slot_grid``), whose 4x more slots would cost 4x the slot pass's grid.
+STB_REUSE_SLOT_GRID_MIN_PX = 16
 STB_REUSE_SLOT_SHAPE_FLOOR = 0.01
 #: The cone of a slot's light is not in that maximum: each pixel applies it (cos space,
 #: a third slot texel). Its cutoff is widened by this fraction (relative, of the cutoff

@@ -112,6 +112,18 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
             32,  # C = 64 candidates a pixel: noise 10x below the others
         ),
         ({"reuse_candidates": 16, "reuse_target": "tile"}, 3e-3, 64),  # two passes, k = 4
+        # 16 px big tiles (reuse7's still configuration): their slots' 2 x 2 grid
+        (
+            {
+                "reuse_candidates": 64,
+                "reuse_k": 0,
+                "reuse_res": "share",
+                "reuse_target": "tile",
+                "big_tile": 16,
+            },
+            3e-3,
+            32,
+        ),
     ],
 )
 @pytest.mark.slow
@@ -188,7 +200,15 @@ TILE_SPOTS = dict(
 
 @pytest.mark.parametrize(
     "extra, ies",
-    [({}, False), ({}, True), ({"reuse_res": "share"}, False), ({"reuse_res": "share"}, True)],
+    [
+        ({}, False),
+        ({}, True),
+        ({"reuse_res": "share"}, False),
+        ({"reuse_res": "share"}, True),
+        # 16 px big tiles: the slots' shaping over a 2 x 2 grid (stb_reuse.slot_grid)
+        ({"reuse_res": "share", "big_tile": 16}, False),
+        ({"reuse_res": "share", "big_tile": 16}, True),
+    ],
 )
 @pytest.mark.slow
 def test_tile_target_unbiased_and_quiet_with_spot_cones(gl_ctx, extra, ies):
@@ -422,6 +442,15 @@ def shadowed_scene() -> str:
         {"reuse_candidates": 4, "reuse_k": 0, "reuse_res": "share", "reuse_temporal": "on"},
         {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
         {"reuse_candidates": 16, "reuse_target": "tile", "reuse_shadow_floor": 0.1},
+        # 16 px big tiles (the slots' 2 x 2 grid), shared quad and per pixel
+        {
+            "reuse_candidates": 64,
+            "reuse_k": 0,
+            "reuse_res": "share",
+            "reuse_target": "tile",
+            "big_tile": 16,
+        },
+        {"reuse_candidates": 32, "reuse_target": "tile", "big_tile": 16},
     ],
 )
 def test_no_nan_or_inf(gl_ctx, opts):
@@ -709,6 +738,21 @@ def test_reuse_candidate_options_are_checked():
         with pytest.raises(OptionError):
             StbLighting(None, reuse=True, **bad)
     StbLighting(None, reuse=True, reuse_candidates=16, reuse_res="quad").release()
+
+
+def test_slot_grid_spacing():
+    """The slot pass's grid (``stb_reuse.slot_grid``): points over the tile +- half a
+    tile (2 x big_tile px) at least ``limits.STB_REUSE_SLOT_GRID_MIN_PX`` apart, 2 to
+    ``limits.STB_REUSE_SLOT_GRID`` per side."""
+    from stb_hydra import limits
+    from stb_hydra.renderer.lighting.stb_reuse import slot_grid
+
+    assert slot_grid(32) == limits.STB_REUSE_SLOT_GRID == 4  # unchanged for 32 px tiles
+    for bt in (16, 32, 64, 128, 256):
+        g = slot_grid(bt)
+        assert 2 <= g <= limits.STB_REUSE_SLOT_GRID
+        assert 2 * bt / g >= limits.STB_REUSE_SLOT_GRID_MIN_PX
+    assert slot_grid(16) == 2
 
 
 def test_ies_cos_rowmax_bounds_the_table():

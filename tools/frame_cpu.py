@@ -14,7 +14,11 @@ with ``LP_NUM_THREADS=1`` for the figures of docs/PERFORMANCE.md.
 Scenes may also be ``stb bench``'s generators (``gen:lights:500``). ``--variant
 LABEL=METHOD[:K=V...]`` adds a method with options as one more interleaved row (issue 31:
 ``--methods stb --variant reuse=stb:reuse=on:N=4:reuse_k=0``); ``--shadow-budget``
-renders with ``stb bench``'s real-time shadow budget instead of the offline one.
+renders with ``stb bench``'s real-time shadow budget instead of the offline one,
+``--shadow-budget-ms MS`` with a budget in milliseconds of captures (``stb bench
+--shadow-budget-ms``); ``--warmup N`` interleaved warm-up frames (default 1; 0: the
+first frames themselves, e.g. issue 31's frame 50 -> 5,000 lights, ``--warmup 0
+--frames 12`` and ``--warmup 40 --frames 10``).
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--size", default="160x90", help="WxH (default 160x90)")
     ap.add_argument("--variant", action="append", default=[], metavar="LABEL=METHOD[:K=V...]")
     ap.add_argument("--shadow-budget", action="store_true", help="stb bench's texel budget")
+    ap.add_argument("--shadow-budget-ms", type=float, default=None, help="capture ms per frame")
+    ap.add_argument("--warmup", type=int, default=1, help="interleaved warm-up frames")
     a = ap.parse_args(argv)
     from stb_hydra import limits
     from stb_hydra.apps.bench import parse_scene
@@ -62,6 +68,7 @@ def main(argv: list[str] | None = None) -> int:
                     lighting=specs[m][0],
                     method_options=dict(specs[m][1]),
                     shadow_budget=budget,
+                    shadow_budget_ms=a.shadow_budget_ms,
                 ),
                 ctx=ctx,
             )
@@ -69,9 +76,10 @@ def main(argv: list[str] | None = None) -> int:
         }
         cpu: dict[str, list[float]] = {m: [] for m in methods}
         try:
-            for e in engs.values():
-                e.render()
-                ctx.finish()
+            for _ in range(a.warmup):
+                for e in engs.values():
+                    e.render()
+                    ctx.finish()
             for _ in range(a.frames):
                 for m, e in engs.items():
                     c = time.process_time()

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 
-def render(scene, method, size, frames, options, shadows=True, aovs=()):
+def render(scene, method, size, frames, options, shadows=True, aovs=(), seed=0):
     from stb_hydra.renderer.engine import Engine
     from stb_hydra.renderer.frame import RenderSettings
 
@@ -37,6 +37,7 @@ def render(scene, method, size, frames, options, shadows=True, aovs=()):
             lighting=method,
             shadows=shadows,
             method_options=dict(options),
+            seed=seed,
         ),
     )
     try:
@@ -88,6 +89,7 @@ def main(argv=None) -> int:
     ap.add_argument("--crops", type=Path, help="STB | reference | FLIP map, PNG")
     ap.add_argument("--save", type=Path, help="the STB still, .npy")
     ap.add_argument("--json", type=Path)
+    ap.add_argument("--seed", type=int, default=0, help="the STB still's RenderSettings.seed")
     a = ap.parse_args(argv)
     w, h = (int(v) for v in a.size.lower().split("x"))
     options = dict(o.split("=", 1) for o in a.option)
@@ -95,7 +97,7 @@ def main(argv=None) -> int:
     ref_d = reference(a.scene, (w, h), sh, a.cache)
     ref = ref_d["color"][..., :3].astype(np.float64)
     unsh = reference(a.scene, (w, h), False, a.cache)["color"][..., :3].astype(np.float64)
-    out, wall = render(a.scene, "stb", (w, h), a.frames, options, sh)
+    out, wall = render(a.scene, "stb", (w, h), a.frames, options, sh, seed=a.seed)
     stb = out["color"][..., :3].astype(np.float64)
     if a.save:
         np.save(a.save, stb.astype(np.float32))

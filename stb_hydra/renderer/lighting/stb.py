@@ -13,8 +13,8 @@
 4. Lighting (``stb_lighting.frag``): per pixel its tile's N samples, fixed cost.
 
 Options (``method_options`` / CLI): ``K`` (4..64), ``N`` (1..4), ``big_tile``
-(px, power of two 32..256), ``small_tile`` (16 with interleaving; any even
-power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
+(px, power of two 16..256; 16: the reuse's still configuration), ``small_tile`` (16
+with interleaving; any even power of two without), ``eps``, ``weight_cap`` (None/<=0 = unbiased),
 ``interleave``, ``stochastic_bilinear``, ``target`` ("segment" | "uniform"),
 ``pdf_floor`` (defensive mixture weight of the small-tile target, see below),
 ``shadow_res`` ("quad": one term per 2x2 quad, the talk's; "pixel": full
@@ -96,7 +96,7 @@ OPTIONS = Schema(
         range=(1, limits.SMALL_TILE_SAMPLES_MAX),
         doc="samples per small tile",
     ),
-    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(32, 64, 128, 256), doc="big tile, px"),
+    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(16, 32, 64, 128, 256), doc="big tile, px"),
     Opt(
         "small_tile",
         int,

@@ -108,6 +108,15 @@ def temporal_reuse(mode: str, frame: FrameContext) -> bool:
     return mode == "on"
 
 
+def slot_grid(big_tile: int) -> int:
+    """Side of the grid of surface points per big-tile slot of ``-o reuse_target=tile``
+    (``stb_reuse_slots.frag``) for big tiles of ``big_tile`` px: points at least
+    ``limits.STB_REUSE_SLOT_GRID_MIN_PX`` apart over the tile +- half a tile, at most
+    ``limits.STB_REUSE_SLOT_GRID`` (4 for 32 px tiles and up, 2 for 16 px)."""
+    g = 2 * int(big_tile) // limits.STB_REUSE_SLOT_GRID_MIN_PX
+    return max(2, min(limits.STB_REUSE_SLOT_GRID, g))
+
+
 #: ``limits.STB_REUSE_CHANGE_RULES`` as ``light_changes`` rules (no turn test) and the
 #: columns whose change is a switch.
 CHANGE_RULES: tuple[Rule, ...] = tuple(
@@ -388,7 +397,8 @@ class ReuseStage:
         (``-o reuse_target=tile``), three rgba32f textures in the big tiles' layout."""
         bufs = frame.buffers
         texs = tuple(bufs.texture(n, 4, "f4", size=big.size) for n in SLOTS)
-        prog = program(frame, "stb_reuse_slots.frag", defines)
+        grid = slot_grid(int(method.o["big_tile"]))
+        prog = program(frame, "stb_reuse_slots.frag", dict(defines, STB_REUSE_SLOT_GRID=grid))
         method._common_uniforms(frame, prog)
         unit = method.bind_common(frame, prog)
         method._bind(frame, prog, unit, "u_bigtile", big)
