@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import resource
+import time
 from pathlib import Path
 
 import pytest
@@ -22,8 +24,14 @@ os.environ.setdefault("GALLIVM_PERF", "nopt")
 # not depend on it. An LP_NUM_THREADS already in the environment wins; GPU drivers
 # ignore it.
 _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
+# The same for OpenMP: flip-evaluator (HDR-FLIP, imported lazily, so this comes before
+# its libgomp loads) otherwise starts one thread per core in each worker, and libgomp's
+# threads spin at their barriers while the other worker wants the core: on test_tradeoff
+# and test_exposure_invariance under -n 2, process CPU 67-76 s -> 34 s and wall 92-104 s
+# -> 54 s (docs/TESTING.md, "OpenMP threads"). HDR-FLIP values do not depend on it.
 if _workers >= 2 and _workers >= (os.cpu_count() or 1):
     os.environ.setdefault("LP_NUM_THREADS", "0")
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()
@@ -83,3 +91,32 @@ def pytest_collection_modifyitems(config, items):
         return
     heavy = {item.path for item in items if item.get_closest_marker("slow")}
     items.sort(key=lambda item: item.path not in heavy)
+
+
+_CPU_LOG = os.environ.get("STB_TEST_CPU_LOG")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """With ``STB_TEST_CPU_LOG=PATH``: one line per test appended to PATH -- node id,
+    wall s, this process's CPU s (user + sys, every thread: llvmpipe's too) and its
+    waited-for children's CPU s (the CLI subprocesses; and the optimised render child's,
+    tests/optimised.py), set-up to teardown. CPU time
+    stays comparable on a loaded machine where wall time does not (docs/TESTING.md)."""
+    if not _CPU_LOG:
+        yield
+        return
+    import optimised  # the optimised child's CPU (tests/optimised.py)
+
+    k0 = optimised.child_cpu_s
+    s0 = resource.getrusage(resource.RUSAGE_SELF)
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    yield
+    t1 = time.perf_counter()
+    s1 = resource.getrusage(resource.RUSAGE_SELF)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    own = (s1.ru_utime - s0.ru_utime) + (s1.ru_stime - s0.ru_stime)
+    kids = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime) + optimised.child_cpu_s - k0
+    with open(_CPU_LOG, "a") as log:  # one short line per write: O_APPEND keeps lines whole
+        log.write(f"{item.nodeid}\t{t1 - t0:.3f}\t{own:.3f}\t{kids:.3f}\n")

@@ -7,6 +7,7 @@ import itertools
 import math
 
 import numpy as np
+import optimised
 import pytest
 from allpairspy import AllPairs
 from convergence import convergence, snapshot_counts
@@ -231,7 +232,7 @@ def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile, frames):
     # less its noise: 0.9e-3 for all N, 3.5e-3 for quad/pixel), the noise within the
     # same budget scaled to the frames and falling as 1/M, the image mean within 1 %
     # (1.5 % with one sample per quad/pixel: their mean spreads 0.6 % at 256 frames).
-    imgs = stb_hydra.render_progressive(
+    imgs = optimised.render_progressive(
         stage, snapshot_counts(frames), width=w, height=h, lighting="stb", **opts
     )
     c = convergence(imgs, ref)

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import optimised
 import pytest
 from convergence import convergence, snapshot_counts
 from stagegen import (
@@ -136,7 +137,7 @@ def test_unbiased_mean_converges_to_closed_form(gl_ctx, many_lights, extra, tol,
     spread at the frames chosen: 0.3 % or less; tools/mutation_check.py plants biases)."""
     stage, exp = many_lights
     opts = dict(UNBIASED, **extra)
-    imgs = stb_hydra.render_progressive(
+    imgs = optimised.render_progressive(
         stage, snapshot_counts(frames), width=W, height=H, lighting="stb", **opts
     )
     c = convergence({n: im[..., 0] for n, im in imgs.items()}, exp)
@@ -226,7 +227,7 @@ def test_tile_target_unbiased_and_quiet_with_spot_cones(gl_ctx, extra, ies):
     stage, ref = spot_scene_and_reference(ies)
     assert ref.mean() > 0.0 and (ies or (ref < 1e-3 * ref.max()).mean() > 0.05)  # dark outside
     opts = dict(TILE_SPOTS, **extra)
-    imgs = stb_hydra.render_progressive(
+    imgs = optimised.render_progressive(
         stage, snapshot_counts(128), width=W, height=H, lighting="stb", **opts
     )
     c = convergence({n: im[..., 0] for n, im in imgs.items()}, ref)
