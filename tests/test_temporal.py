@@ -20,7 +20,7 @@ from stb_hydra.metrics import (
 from stb_hydra.renderer.camera import view_setup
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
-from stb_hydra.renderer.tasks.temporal import halton_jitter, is_camera_cut
+from stb_hydra.renderer.tasks.temporal import halton_jitter, is_camera_cut, young_weights
 from stb_hydra.scenegen.orbit import orbit_camera
 
 pytestmark = pytest.mark.usefixtures("gl_ctx")
@@ -251,6 +251,34 @@ def test_halton_jitter_and_camera_cut():
     cam2.transform = look_at(np.array([0.0, 1.0, 5.0]), np.array([5.0, 1.0, 5.0]))
     assert is_camera_cut(v0, view_setup(cam2, 100, 50), 10.0)
     assert not is_camera_cut(v0, v1, 10.0)
+
+
+def test_young_weights_fit_a_quadratic():
+    """taa's young-history estimate (temporal.young_weights, 5x5): the centre value of a
+    least-squares quadratic, i.e. the 2D Savitzky-Golay filter: weights a - b r^2 with
+    the closed form a = 27/175, b = 1/35; exact on any quadratic (and cubic) sampled on
+    the grid, not on a quartic; 1 / sum(w^2) = 175/27 independent taps."""
+    w = young_weights(5).reshape(5, 5)
+    o = np.arange(5) - 2
+    y, x = np.meshgrid(o, o, indexing="ij")
+    np.testing.assert_allclose(w, 27 / 175 - (x * x + y * y) / 35, atol=1e-12)
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=10)
+    cubic = (
+        c[0]
+        + c[1] * x
+        + c[2] * y
+        + c[3] * x * x
+        + c[4] * x * y
+        + c[5] * y * y
+        + c[6] * x**3
+        + c[7] * x * x * y
+        + c[8] * x * y * y
+        + c[9] * y**3
+    )
+    assert abs(float((w * cubic).sum()) - c[0]) < 1e-9
+    assert abs(float((w * x**4).sum())) > 0.5
+    assert abs(1 / float((w * w).sum()) - 175 / 27) < 1e-9
 
 
 def test_temporal_setting_is_checked():
