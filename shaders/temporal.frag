@@ -51,16 +51,15 @@ uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
-// Young history (shorter than u_young.x frames: a disocclusion, a light change's cap):
-// the display shows, with weight u_young.y (tapering to 0 at u_young.x), a
-// Savitzky-Golay estimate (quadratic least squares over the LIM_TAA_YOUNG_TAPS^2 grid
-// around the pixel, weights u_young_c) of this frame's history, from every tap's
-// reprojected previous history blended with its current sample -- only where every
-// tap is this pixel's tangent plane (within u_young.z pixel footprints per px of
-// offset), now and in the previous frame. Display only: the history keeps its own
-// samples.
+// Young history (shorter than u_young.x frames: a disocclusion): the display shows,
+// with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
+// (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
+// of this frame's history, from every tap's reprojected previous history blended with
+// its current sample -- only where every tap is this pixel's tangent plane (within
+// u_young.z pixel footprints per px of offset), now and in the previous frame.
+// Display only: the history keeps its own samples.
 uniform vec4 u_young;  // length limit (frames), weight, plane tolerance, edge-left cap (frames)
-uniform float u_young_c[LIM_TAA_YOUNG_TAPS * LIM_TAA_YOUNG_TAPS];
+uniform float u_young_c[25];
 // Lights that changed a lot this frame: within a sphere (centre, radius: its
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
@@ -136,10 +135,12 @@ void neighbourhood_stats(ivec2 ip, ivec2 size, float d, vec3 n, out vec3 m1, out
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
         float tol = u_young.z * length(vec2(TAPS[i])) * foot + 1e-4;
         bool on = d > 0.0 ? s.a > 0.0 && abs(dot(nv, pq - p)) <= tol : s.a <= 0.0;
-        // an edge that moves against this pixel (an object passing; not the jitter,
-        // which moves both sides alike, nor a still or rigidly moving scene)
-        vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
-        edge = edge || (i < 9 && !on && (w == 0.0 || dot(dm, dm) > u_edge_motion));
+        if (i < 9) {
+            // another surface: off the plane and a depth step, or moving against this
+            // pixel (an object passing; the jitter moves both sides alike)
+            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
+            edge = edge || (!on && (w == 0.0 || dot(dm, dm) > u_edge_motion));
+        }
         flat_ = flat_ && on;
         m1 += w * s.rgb;
         m2 += w * s.rgb * s.rgb;
@@ -341,30 +342,34 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
     return fp;
 }
 
-// A young pixel's (history `len` frames < u_young.x) Savitzky-Golay estimate of its
-// new history from its 5x5 neighbourhood: each tap's value is its previous history
-// (bilinear, at the pixel's reprojected position + the tap's offset) blended 1/(n+1)
-// with its current sample (taa's blend without the clip); the centre tap is this
-// pixel's own new history `own`. Every tap must lie on this pixel's tangent plane (now
-// and, for its history, in the previous view) and face its way; otherwise (an edge, a
-// history texel of another surface) there is no estimate (a = 0). The weights fit a
-// quadratic, so a smooth gradient of the lighting (a light's hot spot) is kept, which
-// a plain mean blurs. A loop whose trip count is 0 for a pixel with a long history:
+// A young pixel's (history `len` frames < u_young.x, not capped by a light change)
+// Savitzky-Golay estimate of its new history from the 5x5 grid around it (weights
+// u_young_c, row-major: the centre value of a least-squares quadratic through the
+// grid). Each tap's value is its previous history (bilinear, at the pixel's
+// reprojected position + the tap's offset) blended 1/(n+1) with its current sample
+// (taa's blend without the clip); the centre tap is this pixel's own new history
+// `own`. Only where every tap is this pixel's tangent plane now (the 13 taps of the
+// neighbourhood: `flat_`; the 12 others tested here) and, for its history, in the
+// previous view; otherwise (an edge, a history texel of another surface) there is no
+// estimate (a = 0). A quadratic keeps a smooth gradient of the lighting (a light's
+// hot spot) that a plain mean blurs. A loop whose trip count is 0 for other pixels:
 // llvmpipe skips a loop in a SIMD stamp none of whose pixels needs it (not an `if`:
-// docs/STB_NOTES.md "(reuse5)"), so only stamps holding a young pixel pay.
-vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r, vec3 own, float len) {
-    int taps = (d > 0.0 && len < u_young.x && u_reset < 0.5) ? LIM_TAA_YOUNG_TAPS * LIM_TAA_YOUNG_TAPS : 0;
+// docs/STB_NOTES.md "(reuse5)"), so only stamps holding a young pixel on a flat
+// neighbourhood pay (not the edges a moving camera uncovers).
+vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reprojection r, vec3 own,
+                    float len) {
+    bool young = flat_ && d > 0.0 && len < u_young.x && r.max_len >= u_young.x && u_reset < 0.5;
+    int taps = young ? 25 : 0;
+    bool ortho = u_cam_pos.w > 0.5;
     vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
     vec3 nv = mat3(u_view) * n;
-    bool ortho = u_cam_pos.w > 0.5;
     float foot = 2.0 * u_tan_off.y * u_resolution.w * (ortho ? 1.0 : d);
     float prev_foot = 2.0 * u_prev_tan.y * u_resolution.w;
-    int half_w = LIM_TAA_YOUNG_TAPS / 2;
     vec3 sum = vec3(0.0);
-    bool ok = taps > 0;
+    bool ok = young;
     for (int i = 0; i < taps; ++i) {
-        ivec2 o = ivec2(i % LIM_TAA_YOUNG_TAPS - half_w, i / LIM_TAA_YOUNG_TAPS - half_w);
-        if (o == ivec2(0)) {
+        ivec2 o = ivec2(i % 5 - 2, i / 5 - 2);
+        if (i == 12) {
             sum += u_young_c[i] * own;
             continue;
         }
@@ -376,23 +381,23 @@ vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r, vec3 
             ok = false;
             break;
         }
+        float lo = length(vec2(o));
         vec4 s = texelFetch(u_demod, q, 0);
-        float tol = u_young.z * length(vec2(o));
+        // the 13-tap neighbourhood is on the plane (flat_); the others: tested
+        bool inner = abs(o.x) + abs(o.y) <= 2 && (o.x == 0 || o.y == 0 || abs(o.x) == 1);
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
-        vec3 nq = oct_decode(texelFetch(u_normal, q, 0).xy);
+        bool on = inner || (s.a > 0.0 && abs(dot(nv, pq - p)) <= u_young.z * lo * foot + 1e-4);
         // the tap's history texel: its old point on this surface's plane in the previous view
-        vec4 g = texelFetch(u_prev_geo, t, 0);
+        float gd = texelFetch(u_prev_geo, t, 0).x;
         vec2 xy = ((vec2(t) + 0.5) * u_resolution.zw * 2.0 - 1.0) * u_prev_tan.xy + u_prev_tan.zw;
-        vec3 pg = ortho ? vec3(xy, -g.x) : vec3(xy * g.x, -g.x);
-        float pf = prev_foot * (ortho ? 1.0 : g.x);
-        if (!(s.a > 0.0) || !(g.x > 0.0) || dot(n, nq) < 0.9
-            || abs(dot(nv, pq - p)) > tol * foot + 1e-4
-            || abs(dot(r.prev_n, pg - r.prev_p)) > tol * pf + 1e-4) {
+        vec3 pg = ortho ? vec3(xy, -gd) : vec3(xy * gd, -gd);
+        float tol = u_young.z * lo * prev_foot * (ortho ? 1.0 : gd) + 1e-4;
+        if (!on || !(gd > 0.0) || abs(dot(r.prev_n, pg - r.prev_p)) > tol) {
             ok = false;
             break;
         }
         vec4 h = textureLod(u_history, pp * u_resolution.zw, 0.0);
-        sum += u_young_c[i] * mix(h.rgb, s.rgb, 1.0 / (max(h.a, 0.0) + 1.0));
+        sum += u_young_c[i] * mix(h.rgb, s.rgb, 1.0 / (floor(h.a) + 1.0));
     }
     return ok ? vec4(max(sum, vec3(0.0)), 1.0) : vec4(0.0);
 }
@@ -455,7 +460,7 @@ void main() {
     // A young history shows less of its own noise: its neighbourhood's quadratic
     // estimate weighs in by u_young.y, tapering linearly to nothing at u_young.x frames.
     vec3 shown = hist.rgb;
-    vec4 ye = young_estimate(ip, size, d, n, r, hist.rgb, hist.a);
+    vec4 ye = young_estimate(ip, size, d, n, flat_, r, hist.rgb, hist.a);
     if (ye.a > 0.0) {
         float taper = clamp(1.0 - (hist.a - 1.0) / max(u_young.x - 1.0, 1.0), 0.0, 1.0);
         shown = mix(hist.rgb, ye.rgb, u_young.y * taper);

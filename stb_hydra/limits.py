@@ -688,10 +688,6 @@ LINK_MERGE_MAX_SIGNATURES = 2048
 #: ``u_light_caps`` of temporal.frag); more changed lights than this in one frame: the
 #: smallest cap everywhere.
 MAX_LIGHT_CHANGES = 16
-#: Side of the tap grid of taa's young-history spatial mean (``young_mean`` of
-#: temporal.frag: LIM_TAA_YOUNG_TAPS^2 taps, ``temporal.YOUNG_STRIDE`` px apart), fetched
-#: only by pixels whose history is younger than ``temporal.YOUNG_LEN`` frames.
-TAA_YOUNG_TAPS = 5
 #: taa's history alpha holds its length n (frames) + r / TAA_EDGE_RUN_SCALE, r the
 #: frames in a row an edge was beside the pixel, counted up to TAA_EDGE_RUN_MAX (so
 #: r / scale < 0.25 and rounding the alpha gives n back).

@@ -92,12 +92,12 @@ EDGE_MOTION_SLACK = 2.0
 #: -> 1.22x (docs/STB_NOTES.md "(reuse6)").
 PLANE_TOLERANCE = 0.25
 #: Young history (issue 31, docs/STB_NOTES.md "(taa8)"): a pixel whose history is
-#: shorter than YOUNG_LEN frames (a disocclusion, a light change's cap) shows its
+#: shorter than YOUNG_LEN frames (a disocclusion; not a light change's cap) shows its
 #: history mixed with a Savitzky-Golay estimate of it from its neighbours (a quadratic
-#: least-squares fit over the LIM_TAA_YOUNG_TAPS^2 grid, :func:`young_weights`; each
-#: tap is the neighbour's reprojected history blended with its current sample), with
-#: weight YOUNG_WEIGHT tapering linearly to 0 at YOUNG_LEN frames; only where the whole
-#: grid is the pixel's tangent plane (within YOUNG_PLANE pixel footprints per px of
+#: least-squares fit over the 13-tap neighbourhood, :func:`young_weights`; each tap is
+#: the neighbour's reprojected history blended with its current sample), with weight
+#: YOUNG_WEIGHT tapering linearly to 0 at YOUNG_LEN frames; only where the whole
+#: neighbourhood is the pixel's tangent plane (within YOUNG_PLANE pixel footprints per px of
 #: offset, now and in the previous view). Display only: the history keeps its own
 #: samples, so a still image converges as before. A plain (Gaussian) mean instead
 #: blurred the sliding box's floor, lit by a near light's hot spot, more than its noise
@@ -122,13 +122,28 @@ EDGE_MOTION_SQ = 0.25
 EDGE_RUN = 8.0
 
 
-def young_weights(side: int = limits.TAA_YOUNG_TAPS) -> np.ndarray:
-    """(side * side,) weights, row-major (y then x, offsets -side//2..side//2 px), of
-    the centre value of a least-squares quadratic (1, x, y, x^2, xy, y^2) through a
-    side x side grid: a 2D Savitzky-Golay filter. Sums to 1; exact for quadratics
-    (for cubics too, by symmetry); 5x5: 1 / sum(w^2) = 6.5 independent taps."""
-    o = np.arange(side, dtype=np.float64) - side // 2
-    y, x = (v.ravel() for v in np.meshgrid(o, o, indexing="ij"))
+#: The 13-tap neighbourhood of temporal.frag (``TAPS``: the pixel, its 3x3, 4 taps at
+#: distance 2 on the axes), in the shader's order (px offsets x, y).
+NEIGHBOURHOOD = (
+    (0, 0), (-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1),
+    (-2, 0), (2, 0), (0, -2), (0, 2),
+)  # fmt: skip
+
+
+#: The young-history estimate's taps (temporal.frag ``young_estimate``): a 5x5 grid,
+#: row-major (y, then x). 1 / sum(w^2) = 175/27 = 6.5 independent taps against the 13
+#: taps' 11/3, which settled the sliding box in 9 frames instead of 7 (docs/STB_NOTES.md
+#: "(taa8)").
+YOUNG_GRID = tuple((x, y) for y in range(-2, 3) for x in range(-2, 3))
+
+
+def young_weights(taps: tuple[tuple[int, int], ...] = NEIGHBOURHOOD) -> np.ndarray:
+    """(len(taps),) weights of the centre value (offset (0, 0)) of a least-squares
+    quadratic (1, x, y, x^2, xy, y^2) through samples at ``taps`` (px offsets): a 2D
+    Savitzky-Golay filter. Sums to 1 and is exact for quadratics; for the 13 taps
+    1 / sum(w^2) = 11/3 independent taps (a 5x5 grid: 175/27 = 6.5, at twice the
+    fetches)."""
+    x, y = (np.array(v, dtype=np.float64) for v in zip(*taps))
     basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
     return np.linalg.pinv(basis)[0]
 
@@ -180,7 +195,7 @@ def is_camera_cut(prev: ViewSetup, cur: ViewSetup, scene_diagonal: float) -> boo
     return bool(np.any(np.abs(ct - pt) > 0.05 * np.abs(pt)))
 
 
-_YOUNG_C = young_weights().astype(np.float32)
+_YOUNG_C = young_weights(YOUNG_GRID).astype(np.float32)
 
 
 class TemporalTask(Pass):
