@@ -25,8 +25,8 @@
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
-// (disocclusion: same_surface, neighbour_surface), history_catmull_rom,
-// clip_towards_mean, blend. Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
+// (disocclusion: same_surface, neighbour_surface), the edge-left cap, history_catmull_rom,
+// clip_towards_mean, blend, young_estimate (display only; issue 31 "(taa8)"). Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
 // reads lighting / albedo + depth from one texture the lighting pass wrote (one fetch
 // a tap instead of four), the remodulation its albedo + alpha texture,
 // and the edge test fetches each neighbour's depth and normal once for all 4
@@ -115,8 +115,9 @@ const ivec2 TAPS[13] = ivec2[13](
 // Depth-weighted mean and standard deviation of the demodulated lighting over the
 // 13 taps (other surfaces do not widen the box).
 // Also: `edge`, a 3x3 tap is off this pixel's tangent plane (u_young.z pixel
-// footprints per px of offset; sky against surface) and moves against it (motion
-// vectors more than 0.5 px apart); `flat_`, no tap of the 13 is off the plane.
+// footprints per px of offset; sky against surface) and is a 5 % depth step or moves
+// against it (motion vectors more than sqrt(u_edge_motion) px apart); `flat_`, no tap
+// of the 13 is off the plane.
 void neighbourhood_stats(ivec2 ip, ivec2 size, float d, vec3 n, out vec3 m1, out vec3 sigma,
                          out bool edge, out bool flat_) {
     m1 = vec3(0.0);
