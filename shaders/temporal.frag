@@ -25,8 +25,8 @@
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
-// (disocclusion: same_surface, neighbour_surface), history_catmull_rom,
-// clip_towards_mean, blend. Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
+// (disocclusion: same_surface, neighbour_surface), the edge-left cap, history_catmull_rom,
+// clip_towards_mean, blend, young_estimate (display only; issue 31 "(taa8)"). Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
 // reads lighting / albedo + depth from one texture the lighting pass wrote (one fetch
 // a tap instead of four), the remodulation its albedo + alpha texture,
 // and the edge test fetches each neighbour's depth and normal once for all 4
@@ -43,12 +43,23 @@ uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2n
 uniform mat4 u_prev_view;      // previous world -> view
 uniform vec4 u_prev_tan;       // previous view: tan half extents xy, aperture offsets zw (unit depth)
 uniform float u_edge_slack;    // px: how far a neighbour's motion may leave an old texel (edges)
+uniform float u_edge_motion;  // px^2: a 3x3 neighbour moving against the pixel
+uniform vec2 u_edge_run;      // frames in a row with an edge before a flat neighbourhood caps; most counted
 uniform float u_plane_tol;     // px footprints: an old texel's point off this surface's plane
 uniform vec2 u_jitter;         // this frame's jitter (px, image content shift)
 uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
+// Young history (shorter than u_young.x frames: a disocclusion): the display shows,
+// with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
+// (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
+// of this frame's history, from every tap's reprojected previous history blended with
+// its current sample -- only where every tap is this pixel's tangent plane (within
+// u_young.z pixel footprints per px of offset), now and in the previous frame.
+// Display only: the history keeps its own samples.
+uniform vec4 u_young;  // length limit (frames), weight, plane tolerance, edge-left cap (frames)
+uniform float u_young_c[25];
 // Lights that changed a lot this frame: within a sphere (centre, radius: its
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
@@ -103,14 +114,35 @@ const ivec2 TAPS[13] = ivec2[13](
 
 // Depth-weighted mean and standard deviation of the demodulated lighting over the
 // 13 taps (other surfaces do not widen the box).
-void neighbourhood_stats(ivec2 ip, ivec2 size, float d, out vec3 m1, out vec3 sigma) {
+// Also: `edge`, a 3x3 tap is off this pixel's tangent plane (u_young.z pixel
+// footprints per px of offset; sky against surface) and is a 5 % depth step or moves
+// against it (motion vectors more than sqrt(u_edge_motion) px apart); `flat_`, no tap
+// of the 13 is off the plane.
+void neighbourhood_stats(ivec2 ip, ivec2 size, float d, vec3 n, out vec3 m1, out vec3 sigma,
+                         out bool edge, out bool flat_) {
     m1 = vec3(0.0);
     vec3 m2 = vec3(0.0);
     float wsum = 0.0;
+    edge = false;
+    flat_ = true;
+    vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
+    vec3 nv = mat3(u_view) * n;
+    float foot = 2.0 * u_tan_off.y * u_resolution.w * (u_cam_pos.w > 0.5 ? 1.0 : d);
+    vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
     for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         vec4 s = texelFetch(u_demod, q, 0);
         float w = abs(s.a - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
+        vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
+        float tol = u_young.z * length(vec2(TAPS[i])) * foot + 1e-4;
+        bool on = d > 0.0 ? s.a > 0.0 && abs(dot(nv, pq - p)) <= tol : s.a <= 0.0;
+        if (i < 9) {
+            // another surface: off the plane and a depth step, or moving against this
+            // pixel (an object passing; the jitter moves both sides alike)
+            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
+            edge = edge || (!on && (w == 0.0 || dot(dm, dm) > u_edge_motion));
+        }
+        flat_ = flat_ && on;
         m1 += w * s.rgb;
         m2 += w * s.rgb * s.rgb;
         wsum += w;
@@ -159,12 +191,21 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
     return r;
 }
 
+// The history's alpha is its length n (whole frames) + r / LIM_TAA_EDGE_RUN_SCALE: r,
+// how many frames in a row (up to u_edge_run.y) the pixel had an edge beside it
+// (`edge` of neighbourhood_stats). Rounding a bilinear mix of alphas to whole frames
+// ignores r (r / scale < 0.25).
+float edge_run(float alpha) {
+    return floor((alpha - floor(alpha)) * float(LIM_TAA_EDGE_RUN_SCALE) + 0.5);
+}
+
 struct Footprint {
     vec3 bil;        // bilinear-weighted sum of the agreeing texels' history
     float mom2;      // ... of their luma second moments
     float hist_len;  // ... of their history lengths
     float valid_w;   // sum of the agreeing texels' bilinear weights
     int valid_n;     // agreeing texels (4: Catmull-Rom)
+    float edge_run;  // most frames in a row an agreeing texel's history had an edge beside it
 };
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
@@ -242,7 +283,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
             }
         }
     }
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     for (int k = 0; k < 4; ++k) {
         if (!same[k]) continue;
         vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
@@ -250,6 +291,8 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         w *= (k >> 1) == 1 ? f.y : 1.0 - f.y;
         fp.bil += w * h.rgb;
         fp.mom2 += w * g[k].w;
+        // (texels the bilinear footprint weighs little belong to the next pixel)
+        if (w > 0.25) fp.edge_run = max(fp.edge_run, edge_run(h.a));
         fp.valid_w += w;
         fp.valid_n += 1;
         fp.hist_len += w * h.a;
@@ -265,7 +308,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
 // that saw this surface last frame (nearest depth, same side) stands in, instead of
 // starting again from one frame's noise. Only such pixels pay for the search.
 Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     ivec2 c0 = ivec2(floor(r.pos));
     if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
     float g0 = texelFetch(u_prev_geo, c0, 0).x;
@@ -295,9 +338,69 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
         if (err >= best) continue;
         best = err;
         vec4 h = texelFetch(u_history, t, 0);
-        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1);
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a));
     }
     return fp;
+}
+
+// A young pixel's (history `len` frames < u_young.x, not capped by a light change)
+// Savitzky-Golay estimate of its new history from the 5x5 grid around it (weights
+// u_young_c, row-major: the centre value of a least-squares quadratic through the
+// grid). Each tap's value is its previous history (bilinear, at the pixel's
+// reprojected position + the tap's offset) blended 1/(n+1) with its current sample
+// (taa's blend without the clip); the centre tap is this pixel's own new history
+// `own`. Only where every tap is this pixel's tangent plane now (the 13 taps of the
+// neighbourhood: `flat_`; the 12 others tested here) and, for its history, in the
+// previous view; otherwise (an edge, a history texel of another surface) there is no
+// estimate (a = 0). A quadratic keeps a smooth gradient of the lighting (a light's
+// hot spot) that a plain mean blurs. A loop whose trip count is 0 for other pixels:
+// llvmpipe skips a loop in a SIMD stamp none of whose pixels needs it (not an `if`:
+// docs/STB_NOTES.md "(reuse5)"), so only stamps holding a young pixel on a flat
+// neighbourhood pay (not the edges a moving camera uncovers).
+vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reprojection r, vec3 own,
+                    float len) {
+    bool young = flat_ && d > 0.0 && len < u_young.x && r.max_len >= u_young.x && u_reset < 0.5;
+    int taps = young ? 25 : 0;
+    bool ortho = u_cam_pos.w > 0.5;
+    vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
+    vec3 nv = mat3(u_view) * n;
+    float foot = 2.0 * u_tan_off.y * u_resolution.w * (ortho ? 1.0 : d);
+    float prev_foot = 2.0 * u_prev_tan.y * u_resolution.w;
+    vec3 sum = vec3(0.0);
+    bool ok = young;
+    for (int i = 0; i < taps; ++i) {
+        ivec2 o = ivec2(i % 5 - 2, i / 5 - 2);
+        if (i == 12) {
+            sum += u_young_c[i] * own;
+            continue;
+        }
+        ivec2 q = ip + o;
+        vec2 pp = r.pos + vec2(o);
+        ivec2 t = ivec2(floor(pp));
+        if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))
+            || any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) {
+            ok = false;
+            break;
+        }
+        float lo = length(vec2(o));
+        vec4 s = texelFetch(u_demod, q, 0);
+        // the 13-tap neighbourhood is on the plane (flat_); the others: tested
+        bool inner = abs(o.x) + abs(o.y) <= 2 && (o.x == 0 || o.y == 0 || abs(o.x) == 1);
+        vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
+        bool on = inner || (s.a > 0.0 && abs(dot(nv, pq - p)) <= u_young.z * lo * foot + 1e-4);
+        // the tap's history texel: its old point on this surface's plane in the previous view
+        float gd = texelFetch(u_prev_geo, t, 0).x;
+        vec2 xy = ((vec2(t) + 0.5) * u_resolution.zw * 2.0 - 1.0) * u_prev_tan.xy + u_prev_tan.zw;
+        vec3 pg = ortho ? vec3(xy, -gd) : vec3(xy * gd, -gd);
+        float tol = u_young.z * lo * prev_foot * (ortho ? 1.0 : gd) + 1e-4;
+        if (!on || !(gd > 0.0) || abs(dot(r.prev_n, pg - r.prev_p)) > tol) {
+            ok = false;
+            break;
+        }
+        vec4 h = textureLod(u_history, pp * u_resolution.zw, 0.0);
+        sum += u_young_c[i] * mix(h.rgb, s.rgb, 1.0 / (floor(h.a) + 1.0));
+    }
+    return ok ? vec4(max(sum, vec3(0.0)), 1.0) : vec4(0.0);
 }
 
 // The new sample blended into the history: the neighbourhood mean instead of the
@@ -337,15 +440,33 @@ void main() {
     float d = centre.a;
     vec2 enc = texelFetch(u_normal, ip, 0).xy;
     vec3 m1, sigma;
-    neighbourhood_stats(ip, size, d, m1, sigma);
     vec3 n = oct_decode(enc);
+    bool edge, flat_;
+    neighbourhood_stats(ip, size, d, n, m1, sigma, edge, flat_);
     Reprojection r = reproject(ip, d, n);
     Footprint fp = footprint_history(ip, size, d, n, r);
     if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
+    // History taken beside an edge (a 3x3 neighbour of another surface) for at least
+    // u_edge_run.x frames in a row, whose whole 13-tap neighbourhood is now one plane:
+    // the edge left by more than the jitter moves it (an object moved away; a still or
+    // rigidly moving scene keeps its edges beside their pixels), and the history mixes
+    // the two surfaces: capped. The run keeps out thin features (a post narrower than
+    // a pixel) that the jitter shows in some frames and not others: their pixels'
+    // history is their antialiasing.
+    if (fp.edge_run >= u_edge_run.x && flat_) r.max_len = min(r.max_len, u_young.w);
     float tm2;
     vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
-    o_history = hist;
+    float run = edge && fp.valid_n > 0 && u_reset < 0.5 ? min(fp.edge_run + 1.0, u_edge_run.y) : float(edge);
+    o_history = vec4(hist.rgb, hist.a + run / float(LIM_TAA_EDGE_RUN_SCALE));
+    // A young history shows less of its own noise: its neighbourhood's quadratic
+    // estimate weighs in by u_young.y, tapering linearly to nothing at u_young.x frames.
+    vec3 shown = hist.rgb;
+    vec4 ye = young_estimate(ip, size, d, n, flat_, r, hist.rgb, hist.a);
+    if (ye.a > 0.0) {
+        float taper = clamp(1.0 - (hist.a - 1.0) / max(u_young.x - 1.0, 1.0), 0.0, 1.0);
+        shown = mix(hist.rgb, ye.rgb, u_young.y * taper);
+    }
     vec4 alb = texelFetch(u_albedo, ip, 0);
-    o_color = vec4(hist.rgb * alb.rgb, alb.a);
+    o_color = vec4(shown * alb.rgb, alb.a);
     o_geo = vec4(d, enc, tm2);
 }

@@ -691,6 +691,11 @@ LINK_MERGE_MAX_SIGNATURES = 2048
 #: ``u_light_caps`` of temporal.frag); more changed lights than this in one frame: the
 #: smallest cap everywhere.
 MAX_LIGHT_CHANGES = 16
+#: taa's history alpha holds its length n (frames) + r / TAA_EDGE_RUN_SCALE, r the
+#: frames in a row an edge was beside the pixel, counted up to TAA_EDGE_RUN_MAX (so
+#: r / scale < 0.25 and rounding the alpha gives n back).
+TAA_EDGE_RUN_SCALE = 64
+TAA_EDGE_RUN_MAX = 15
 #: Unshadowed distant lights beside the sun (``u_dist_dir`` / ``u_dist_illum`` of the
 #: frame block, common/frame.glsl); more: the brightest are kept, with a warning.
 MAX_EXTRA_DISTANT = 3

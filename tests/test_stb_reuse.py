@@ -677,17 +677,7 @@ def _slide_run(opts: dict) -> dict[str, np.ndarray]:
     "opts",
     [
         pytest.param(REUSE, id="reuse"),
-        pytest.param(
-            SHARE_TILE,
-            id="share_tile",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="issue 31 acceptance not met with the opt-in configuration: settles "
-                "in 16 frames -- no ghost is left (test_taa_sliding_box_leaves_no_ghost), but "
-                "a young history is noisier than the still floor's, whose level keeps "
-                "falling as 1/sqrt(n) (docs/STB_NOTES.md, reuse4 and reuse6)",
-            ),
-        ),
+        pytest.param(SHARE_TILE, id="share_tile"),
     ],
 )
 def test_taa_sliding_box_leaves_no_trail(gl_ctx, opts):
@@ -696,7 +686,10 @@ def test_taa_sliding_box_leaves_no_trail(gl_ctx, opts):
     parked at its final place, x 1.5) within 8 frames of the uncovering, averaged over
     three seeds; the yardstick is STB with reuse itself, 64 accumulated frames of the
     final state. (Before issue 31's reuse6 fix -- taa's edge test took the box's old
-    texels for a jitter edge -- ``reuse`` settled in 9 frames.)"""
+    texels for a jitter edge -- ``reuse`` settled in 9 frames. ``share_tile`` settled in
+    16 before taa8 -- a young history's noise and the history mixed at the box's edge --
+    and in 7 with taa's young-history estimate and edge-left cap, docs/STB_NOTES.md
+    "(taa8)"; 11-14 with either alone.)"""
     from stb_hydra.metrics import frames_to_settle
 
     e = _slide_errors(opts)
@@ -712,11 +705,13 @@ def test_taa_sliding_box_leaves_no_ghost(gl_ctx):
     dropped at the uncovering -- the best any disocclusion test can do. With the opt-in
     configuration (the lowest still level, so the most sensitive): 1.34x; 2.8x before
     issue 31's reuse6 fix (the floor took the box's history as a jitter edge), 1.49x with
-    that fix but without the tangent-plane test (the box's side at the crease)."""
+    that fix but without the tangent-plane test (the box's side at the crease), 1.34x
+    after it; 1.08x with taa8's edge-left cap (the history the jitter mixed at the box's
+    far top edge is capped once the edge has gone), hence the bound of 1.2."""
     e = _slide_errors(SHARE_TILE)
     late = slice(SLIDE_UNCOVERED + 8, SLIDE_FRAMES)
     ratio = float(np.mean(e["moving"][late] / e["restart"][late]))
-    assert ratio <= 1.6, (
+    assert ratio <= 1.2, (
         ratio,
         e["moving"][late].round(3).tolist(),
         e["restart"][late].round(3).tolist(),

@@ -20,7 +20,7 @@ from stb_hydra.metrics import (
 from stb_hydra.renderer.camera import view_setup
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
-from stb_hydra.renderer.tasks.temporal import halton_jitter, is_camera_cut
+from stb_hydra.renderer.tasks.temporal import halton_jitter, is_camera_cut, young_weights
 from stb_hydra.scenegen.orbit import orbit_camera
 
 pytestmark = pytest.mark.usefixtures("gl_ctx")
@@ -251,6 +251,35 @@ def test_halton_jitter_and_camera_cut():
     cam2.transform = look_at(np.array([0.0, 1.0, 5.0]), np.array([5.0, 1.0, 5.0]))
     assert is_camera_cut(v0, view_setup(cam2, 100, 50), 10.0)
     assert not is_camera_cut(v0, v1, 10.0)
+
+
+def test_young_weights_fit_a_quadratic():
+    """taa's young-history estimate (temporal.young_weights): the centre value of a
+    least-squares quadratic through the 13-tap neighbourhood, i.e. a 2D Savitzky-Golay
+    filter. Closed form for those taps: 3/11 at the centre, 2/11 on the axes at 1 px,
+    1/11 on the diagonals, -1/11 at 2 px; exact on any quadratic sampled there, not on
+    x^4; 1 / sum(w^2) = 11/3 independent taps. On a 5x5 grid: 27/175 - r^2/35, exact on
+    cubics too."""
+    from stb_hydra.renderer.tasks.temporal import NEIGHBOURHOOD
+
+    w = young_weights()
+    x, y = (np.array(v, dtype=np.float64) for v in zip(*NEIGHBOURHOOD))
+    r2 = x * x + y * y
+    expect = np.select([r2 == 0, r2 == 1, r2 == 2, r2 == 4], [3 / 11, 2 / 11, 1 / 11, -1 / 11])
+    np.testing.assert_allclose(w, expect, atol=1e-12)
+    rng = np.random.default_rng(3)
+    c = rng.normal(size=6)
+    quad = c[0] + c[1] * x + c[2] * y + c[3] * x * x + c[4] * x * y + c[5] * y * y
+    assert abs(float(w @ quad) - c[0]) < 1e-9
+    assert abs(float(w @ x**4)) > 0.5
+    assert abs(1 / float(w @ w) - 11 / 3) < 1e-9
+    o = np.arange(5) - 2
+    gy, gx = (v.ravel() for v in np.meshgrid(o, o, indexing="ij"))
+    g = young_weights(tuple(zip(gx.tolist(), gy.tolist())))
+    np.testing.assert_allclose(g, 27 / 175 - (gx * gx + gy * gy) / 35, atol=1e-12)
+    cubic = c[0] + c[1] * gx + c[2] * gy + c[3] * gx * gx + c[4] * gx * gy + c[5] * gy * gy
+    cubic = cubic + c[1] * gx**3 - c[2] * gx * gy * gy
+    assert abs(float(g @ cubic) - c[0]) < 1e-9
 
 
 def test_temporal_setting_is_checked():

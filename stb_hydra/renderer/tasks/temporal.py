@@ -91,6 +91,63 @@ EDGE_MOTION_SLACK = 2.0
 #: late error 1.49x -> 1.34x a restart's; still courtyard relMSE taa / accumulate 1.19x
 #: -> 1.22x (docs/STB_NOTES.md "(reuse6)").
 PLANE_TOLERANCE = 0.25
+#: Young history (issue 31, docs/STB_NOTES.md "(taa8)"): a pixel whose history is
+#: shorter than YOUNG_LEN frames (a disocclusion; not a light change's cap) shows its
+#: history mixed with a Savitzky-Golay estimate of it from its neighbours (a quadratic
+#: least-squares fit over the 13-tap neighbourhood, :func:`young_weights`; each tap is
+#: the neighbour's reprojected history blended with its current sample), with weight
+#: YOUNG_WEIGHT tapering linearly to 0 at YOUNG_LEN frames; only where the whole
+#: neighbourhood is the pixel's tangent plane (within YOUNG_PLANE pixel footprints per px of
+#: offset, now and in the previous view). Display only: the history keeps its own
+#: samples, so a still image converges as before. A plain (Gaussian) mean instead
+#: blurred the sliding box's floor, lit by a near light's hot spot, more than its noise
+#: (uncovered-floor error 0.074 -> 0.133 at the uncovering). Sliding box with the opt-in
+#: reuse configuration (tests/test_stb_reuse.py, three seeds): YOUNG_LEN 16 / 20 / 24
+#: / 32 settle in 7 / 9 / 7 / 9 frames (a longer length lowers the still level too).
+#: YOUNG_LEN 0: off.
+YOUNG_LEN = 24.0
+YOUNG_WEIGHT = 0.85
+YOUNG_PLANE = 0.5
+#: Edge-left cap (frames; 0: off): a history taken with an edge beside the pixel for at
+#: least EDGE_RUN frames in a row (a 3x3 neighbour off its tangent plane, by YOUNG_PLANE,
+#: and more than 5 % deeper or nearer or moving against it by more than
+#: sqrt(EDGE_MOTION_SQ) px) is capped at EDGE_LEFT_CAP where the whole 13-tap
+#: neighbourhood is now that plane: the edge left by more than the jitter moves it, and
+#: the history mixes the two surfaces (the sliding box's far top edge: docs/STB_NOTES.md
+#: "(reuse6)" and "(taa8)"; late error 1.34x -> 1.08x a restart's). Still courtyard
+#: (96x54, 64 frames) relMSE taa / accumulate 1.216x -> 1.207x; without the run and with
+#: texels of the footprint the bilinear weights ignore it was 1.58x (jitter edges).
+EDGE_LEFT_CAP = 1.0
+EDGE_MOTION_SQ = 0.25
+EDGE_RUN = 8.0
+
+
+#: The 13-tap neighbourhood of temporal.frag (``TAPS``: the pixel, its 3x3, 4 taps at
+#: distance 2 on the axes), in the shader's order (px offsets x, y).
+NEIGHBOURHOOD = (
+    (0, 0), (-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1),
+    (-2, 0), (2, 0), (0, -2), (0, 2),
+)  # fmt: skip
+
+
+#: The young-history estimate's taps (temporal.frag ``young_estimate``): a 5x5 grid,
+#: row-major (y, then x). 1 / sum(w^2) = 175/27 = 6.5 independent taps against the 13
+#: taps' 11/3, which settled the sliding box in 9 frames instead of 7 (docs/STB_NOTES.md
+#: "(taa8)").
+YOUNG_GRID = tuple((x, y) for y in range(-2, 3) for x in range(-2, 3))
+
+
+def young_weights(taps: tuple[tuple[int, int], ...] = NEIGHBOURHOOD) -> np.ndarray:
+    """(len(taps),) weights of the centre value (offset (0, 0)) of a least-squares
+    quadratic (1, x, y, x^2, xy, y^2) through samples at ``taps`` (px offsets): a 2D
+    Savitzky-Golay filter. Sums to 1 and is exact for quadratics; for the 13 taps
+    1 / sum(w^2) = 11/3 independent taps (a 5x5 grid: 175/27 = 6.5, at twice the
+    fetches)."""
+    x, y = (np.array(v, dtype=np.float64) for v in zip(*taps))
+    basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=1)
+    return np.linalg.pinv(basis)[0]
+
+
 #: Camera cut: the view direction turned by more than this (degrees) or the
 #: camera moved by more than this fraction of the scene's diagonal in one frame.
 CUT_ANGLE_DEG = 30.0
@@ -136,6 +193,9 @@ def is_camera_cut(prev: ViewSetup, cur: ViewSetup, scene_diagonal: float) -> boo
         return True
     pt, ct = np.asarray(prev.tan_half), np.asarray(cur.tan_half)
     return bool(np.any(np.abs(ct - pt) > 0.05 * np.abs(pt)))
+
+
+_YOUNG_C = young_weights(YOUNG_GRID).astype(np.float32)
 
 
 class TemporalTask(Pass):
@@ -256,6 +316,10 @@ class TemporalTask(Pass):
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
+        set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
+        set_uniform(prog, "u_young_c", _YOUNG_C)
+        set_uniform(prog, "u_edge_motion", EDGE_MOTION_SQ)
+        set_uniform(prog, "u_edge_run", (EDGE_RUN, float(limits.TAA_EDGE_RUN_MAX)))
         fbo = bufs.framebuffer(f"fb_taa_{1 - src}", [OUTPUT, h_dst, g_dst])
         draw_fullscreen(ctx, prog, fbo, bufs.size)
         hist.filter = (moderngl.NEAREST, moderngl.NEAREST)
