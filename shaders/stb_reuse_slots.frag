@@ -25,6 +25,10 @@
 //            (>= LIM_REUSE_SLOT_CONE_MIN_DCOS); a light without a cone: xyz its unit
 //            axis (0 without an IES layer either), w = -2 (t = 0, shape 1). The IES
 //            lookup's axis is normalize(xyz).
+// stb_reuse.slot_grid(big_tile), defined by the pass; alone (a compile check): the largest.
+#ifndef STB_REUSE_SLOT_GRID
+#define STB_REUSE_SLOT_GRID LIM_REUSE_SLOT_GRID
+#endif
 #include "common/frame.glsl"
 #include "common/gbuffer.glsl"
 #include "common/packing.glsl"

@@ -59,7 +59,7 @@ uniform float u_cur_weight;    // a moving pixel's own sample against the neighb
 // u_young.z pixel footprints per px of offset), now and in the previous frame.
 // Display only: the history keeps its own samples.
 uniform vec4 u_young;  // length limit (frames), weight, plane tolerance, edge-left cap (frames)
-uniform float u_young_c[25];
+uniform float u_young_c[LIM_TAA_YOUNG_GRID * LIM_TAA_YOUNG_GRID];
 // Lights that changed a lot this frame: within a sphere (centre, radius: its
 // influence range grown by its move) the history is capped at u_light_caps[i]
 // frames (1: dropped: a light switched off is gone from this frame on).
@@ -360,7 +360,8 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
 vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reprojection r, vec3 own,
                     float len) {
     bool young = flat_ && d > 0.0 && len < u_young.x && r.max_len >= u_young.x && u_reset < 0.5;
-    int taps = young ? 25 : 0;
+    const int YG = LIM_TAA_YOUNG_GRID, YR = LIM_TAA_YOUNG_GRID / 2;
+    int taps = young ? YG * YG : 0;
     bool ortho = u_cam_pos.w > 0.5;
     vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
     vec3 nv = mat3(u_view) * n;
@@ -369,8 +370,8 @@ vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reproject
     vec3 sum = vec3(0.0);
     bool ok = young;
     for (int i = 0; i < taps; ++i) {
-        ivec2 o = ivec2(i % 5 - 2, i / 5 - 2);
-        if (i == 12) {
+        ivec2 o = ivec2(i % YG - YR, i / YG - YR);
+        if (i == YG * YG / 2) {
             sum += u_young_c[i] * own;
             continue;
         }

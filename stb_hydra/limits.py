@@ -696,6 +696,10 @@ MAX_LIGHT_CHANGES = 16
 #: r / scale < 0.25 and rounding the alpha gives n back).
 TAA_EDGE_RUN_SCALE = 64
 TAA_EDGE_RUN_MAX = 15
+#: Side (taps, odd) of taa's young-history estimate's grid (``u_young_c`` of
+#: temporal.frag, ``tasks.temporal.YOUNG_GRID``): a least-squares quadratic over
+#: TAA_YOUNG_GRID^2 neighbours.
+TAA_YOUNG_GRID = 5
 #: Unshadowed distant lights beside the sun (``u_dist_dir`` / ``u_dist_illum`` of the
 #: frame block, common/frame.glsl); more: the brightest are kept, with a warning.
 MAX_EXTRA_DISTANT = 3

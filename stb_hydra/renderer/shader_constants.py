@@ -240,6 +240,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_FOOTPRINT_BINS": str(limits.SHADOW_FOOTPRINT_BINS),
         "LIM_MAX_LIGHT_CHANGES": str(limits.MAX_LIGHT_CHANGES),
         "LIM_TAA_EDGE_RUN_SCALE": str(limits.TAA_EDGE_RUN_SCALE),
+        "LIM_TAA_YOUNG_GRID": str(limits.TAA_YOUNG_GRID),
         "LIM_MAX_EXTRA_DISTANT": str(limits.MAX_EXTRA_DISTANT),
         "LIM_CULL_LIGHTS_PER_INVOCATION": str(limits.CULL_LIGHTS_PER_INVOCATION),
         "LIM_CUBE_FACES": str(limits.CUBE_FACES),

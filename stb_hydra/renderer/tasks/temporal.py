@@ -134,7 +134,8 @@ NEIGHBOURHOOD = (
 #: row-major (y, then x). 1 / sum(w^2) = 175/27 = 6.5 independent taps against the 13
 #: taps' 11/3, which settled the sliding box in 9 frames instead of 7 (docs/STB_NOTES.md
 #: "(taa8)").
-YOUNG_GRID = tuple((x, y) for y in range(-2, 3) for x in range(-2, 3))
+_YR = limits.TAA_YOUNG_GRID // 2
+YOUNG_GRID = tuple((x, y) for y in range(-_YR, _YR + 1) for x in range(-_YR, _YR + 1))
 
 
 def young_weights(taps: tuple[tuple[int, int], ...] = NEIGHBOURHOOD) -> np.ndarray:
