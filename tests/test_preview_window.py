@@ -80,24 +80,59 @@ def _start(display, args, tmp: Path, events=None) -> subprocess.Popen:
 
 def _wait_line(proc: subprocess.Popen, prefix: str, timeout: float = 90.0) -> str:
     """Read the previewer's stdout up to a line starting with ``prefix`` (at most
-    ``timeout`` s) and return it (the lines before it are dropped)."""
-    import selectors
+    ``timeout`` s) and return it (the lines before it are dropped; the bytes after it
+    are kept for the next call and :func:`_finish`). Reads the pipe's fd itself: a
+    ``select`` on the fd then ``readline`` on the buffered file missed a line that came
+    in the same read as the one before it (it sat in the file's buffer while ``select``
+    waited for more: the 90 s timeouts of the xdotool test in loaded runs)."""
+    import select
 
     assert proc.stdout is not None
-    sel = selectors.DefaultSelector()
-    sel.register(proc.stdout, selectors.EVENT_READ)
+    fd = proc.stdout.fileno()
+    buf: bytes = getattr(proc, "_pending", b"")
+    want = prefix.encode()
+    seen: list[bytes] = []
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if not sel.select(timeout=max(0.0, deadline - time.monotonic())):
+    while True:
+        while b"\n" in buf:
+            line, buf = buf.split(b"\n", 1)
+            if line.startswith(want):
+                proc._pending = buf  # type: ignore[attr-defined]
+                return line.decode(errors="replace") + "\n"
+            seen.append(line)
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([fd], [], [], left)[0]:
             break
-        line = proc.stdout.readline()
-        if not line:  # the previewer exited
+        chunk = os.read(fd, 65536)
+        if not chunk:  # the previewer exited
             break
-        if line.startswith(prefix):
-            return line
+        buf += chunk
     proc.kill()
-    _, err = proc.communicate(timeout=30)
-    raise AssertionError(f"no {prefix!r} from the previewer within {timeout} s: {err}")
+    out, err = proc.communicate(timeout=30)
+    shown = b"\n".join([*seen[-20:], buf]).decode(errors="replace") + out
+    raise AssertionError(
+        f"no {prefix!r} from the previewer within {timeout} s; stdout: {shown[-3000:]!r}; "
+        f"stderr: {err[-2000:]!r}"
+    )
+
+
+def test_wait_line_sees_a_line_that_came_with_the_one_before():
+    """Two lines in one write, then silence: the second is found at once (the old
+    select-then-readline read both into the file's buffer and waited out the timeout),
+    and what follows is kept for the next read."""
+    code = (
+        "import sys, time; sys.stdout.write('one\\nstb preview: mark ready window=0x1 "
+        "selected=-\\nthree\\n'); sys.stdout.flush(); time.sleep(3); print('four')"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    t0 = time.monotonic()
+    assert _wait_mark(proc, "ready", timeout=20) == (1, "-")
+    assert time.monotonic() - t0 < 2.5
+    assert _wait_line(proc, "three", timeout=1) == "three\n"
+    _, out, _ = _finish(proc)
+    assert out == "four\n"
 
 
 def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tuple[int, str]:
@@ -111,6 +146,7 @@ def _wait_mark(proc: subprocess.Popen, name: str, timeout: float = 90.0) -> tupl
 def _finish(proc: subprocess.Popen, timeout: float = 90.0) -> tuple[int, str, str]:
     try:
         out, err = proc.communicate(timeout=timeout)
+        out = getattr(proc, "_pending", b"").decode(errors="replace") + out
     except subprocess.TimeoutExpired:
         proc.kill()
         out, err = proc.communicate()
