@@ -14,9 +14,10 @@ contract float operations here; ``tests/test_shader_optimisation.py``), so a tes
 verdict does not depend on where it rendered. Mesa's shader cache keys its entries on
 the flag: the child's programs are cached beside the parent's.
 
-The child is used only where the parent runs under ``nopt`` (llvmpipe); elsewhere
-(``GALLIVM_PERF`` set otherwise, a GPU driver that ignores it) the render runs in
-process. ``STB_TEST_OPT_CHILD=0`` turns the child off.
+The child is used only where the parent runs under ``nopt``; with ``GALLIVM_PERF``
+set otherwise the render runs in process. On a GPU host (which ignores the flag) the
+child still renders, on the GPU, in a context of its own: no gain, no harm.
+``STB_TEST_OPT_CHILD=0`` turns the child off.
 """
 
 from __future__ import annotations
