@@ -112,30 +112,40 @@ const ivec2 TAPS[13] = ivec2[13](
     ivec2(0, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1), ivec2(-1, 0), ivec2(1, 0),
     ivec2(-1, 1), ivec2(0, 1), ivec2(1, 1), ivec2(-2, 0), ivec2(2, 0), ivec2(0, -2), ivec2(0, 2));
 
+// This pixel's surface in view space: its point, normal and pixel footprint (m per px
+// at its depth), for the tangent-plane tests of neighbourhood_stats and young_estimate.
+struct SurfacePlane {
+    vec3 p;
+    vec3 nv;
+    float foot;
+};
+
+SurfacePlane surface_plane(float d, vec3 n) {
+    return SurfacePlane(view_pos_from_depth(gl_FragCoord.xy, d), mat3(u_view) * n,
+                        2.0 * u_tan_off.y * u_resolution.w * (u_cam_pos.w > 0.5 ? 1.0 : d));
+}
+
 // Depth-weighted mean and standard deviation of the demodulated lighting over the
 // 13 taps (other surfaces do not widen the box).
 // Also: `edge`, a 3x3 tap is off this pixel's tangent plane (u_young.z pixel
 // footprints per px of offset; sky against surface) and is a 5 % depth step or moves
 // against it (motion vectors more than sqrt(u_edge_motion) px apart); `flat_`, no tap
 // of the 13 is off the plane.
-void neighbourhood_stats(ivec2 ip, ivec2 size, float d, vec3 n, out vec3 m1, out vec3 sigma,
-                         out bool edge, out bool flat_) {
+void neighbourhood_stats(ivec2 ip, ivec2 size, float d, SurfacePlane sp, out vec3 m1,
+                         out vec3 sigma, out bool edge, out bool flat_) {
     m1 = vec3(0.0);
     vec3 m2 = vec3(0.0);
     float wsum = 0.0;
     edge = false;
     flat_ = true;
-    vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
-    vec3 nv = mat3(u_view) * n;
-    float foot = 2.0 * u_tan_off.y * u_resolution.w * (u_cam_pos.w > 0.5 ? 1.0 : d);
     vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
     for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         vec4 s = texelFetch(u_demod, q, 0);
         float w = abs(s.a - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
-        float tol = u_young.z * length(vec2(TAPS[i])) * foot + 1e-4;
-        bool on = d > 0.0 ? s.a > 0.0 && abs(dot(nv, pq - p)) <= tol : s.a <= 0.0;
+        float tol = u_young.z * length(vec2(TAPS[i])) * sp.foot + 1e-4;
+        bool on = d > 0.0 ? s.a > 0.0 && abs(dot(sp.nv, pq - sp.p)) <= tol : s.a <= 0.0;
         if (i < 9) {
             // another surface: off the plane and a depth step, or moving against this
             // pixel (an object passing; the jitter moves both sides alike)
@@ -357,15 +367,12 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
 // llvmpipe skips a loop in a SIMD stamp none of whose pixels needs it (not an `if`:
 // docs/STB_NOTES.md "(reuse5)"), so only stamps holding a young pixel on a flat
 // neighbourhood pay (not the edges a moving camera uncovers).
-vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reprojection r, vec3 own,
-                    float len) {
+vec4 young_estimate(ivec2 ip, ivec2 size, float d, SurfacePlane sp, bool flat_, Reprojection r,
+                    vec3 own, float len) {
     bool young = flat_ && d > 0.0 && len < u_young.x && r.max_len >= u_young.x && u_reset < 0.5;
     const int YG = LIM_TAA_YOUNG_GRID, YR = LIM_TAA_YOUNG_GRID / 2;
     int taps = young ? YG * YG : 0;
     bool ortho = u_cam_pos.w > 0.5;
-    vec3 p = view_pos_from_depth(gl_FragCoord.xy, d);
-    vec3 nv = mat3(u_view) * n;
-    float foot = 2.0 * u_tan_off.y * u_resolution.w * (ortho ? 1.0 : d);
     float prev_foot = 2.0 * u_prev_tan.y * u_resolution.w;
     vec3 sum = vec3(0.0);
     bool ok = young;
@@ -388,7 +395,8 @@ vec4 young_estimate(ivec2 ip, ivec2 size, float d, vec3 n, bool flat_, Reproject
         // the 13-tap neighbourhood is on the plane (flat_); the others: tested
         bool inner = abs(o.x) + abs(o.y) <= 2 && (o.x == 0 || o.y == 0 || abs(o.x) == 1);
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
-        bool on = inner || (s.a > 0.0 && abs(dot(nv, pq - p)) <= u_young.z * lo * foot + 1e-4);
+        bool on = inner
+                  || (s.a > 0.0 && abs(dot(sp.nv, pq - sp.p)) <= u_young.z * lo * sp.foot + 1e-4);
         // the tap's history texel: its old point on this surface's plane in the previous view
         float gd = texelFetch(u_prev_geo, t, 0).x;
         vec2 xy = ((vec2(t) + 0.5) * u_resolution.zw * 2.0 - 1.0) * u_prev_tan.xy + u_prev_tan.zw;
@@ -443,7 +451,8 @@ void main() {
     vec3 m1, sigma;
     vec3 n = oct_decode(enc);
     bool edge, flat_;
-    neighbourhood_stats(ip, size, d, n, m1, sigma, edge, flat_);
+    SurfacePlane sp = surface_plane(d, n);
+    neighbourhood_stats(ip, size, d, sp, m1, sigma, edge, flat_);
     Reprojection r = reproject(ip, d, n);
     Footprint fp = footprint_history(ip, size, d, n, r);
     if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
@@ -462,7 +471,7 @@ void main() {
     // A young history shows less of its own noise: its neighbourhood's quadratic
     // estimate weighs in by u_young.y, tapering linearly to nothing at u_young.x frames.
     vec3 shown = hist.rgb;
-    vec4 ye = young_estimate(ip, size, d, n, flat_, r, hist.rgb, hist.a);
+    vec4 ye = young_estimate(ip, size, d, sp, flat_, r, hist.rgb, hist.a);
     if (ye.a > 0.0) {
         float taper = clamp(1.0 - (hist.a - 1.0) / max(u_young.x - 1.0, 1.0), 0.0, 1.0);
         shown = mix(hist.rgb, ye.rgb, u_young.y * taper);

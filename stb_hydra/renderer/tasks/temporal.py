@@ -94,7 +94,7 @@ PLANE_TOLERANCE = 0.25
 #: Young history (issue 31, docs/STB_NOTES.md "(taa8)"): a pixel whose history is
 #: shorter than YOUNG_LEN frames (a disocclusion; not a light change's cap) shows its
 #: history mixed with a Savitzky-Golay estimate of it from its neighbours (a quadratic
-#: least-squares fit over the 13-tap neighbourhood, :func:`young_weights`; each tap is
+#: least-squares fit over the YOUNG_GRID taps, :func:`young_weights`; each tap is
 #: the neighbour's reprojected history blended with its current sample), with weight
 #: YOUNG_WEIGHT tapering linearly to 0 at YOUNG_LEN frames; only where the whole
 #: neighbourhood is the pixel's tangent plane (within YOUNG_PLANE pixel footprints per px of
