@@ -101,7 +101,8 @@ def pytest_runtest_protocol(item, nextitem):
     """With ``STB_TEST_CPU_LOG=PATH``: one line per test appended to PATH -- node id,
     wall s, this process's CPU s (user + sys, every thread: llvmpipe's too) and its
     waited-for children's CPU s (the CLI subprocesses; and the optimised render child's,
-    tests/optimised.py), set-up to teardown. CPU time
+    tests/optimised.py), set-up to teardown, then the xdist worker (``-`` serially) and
+    the test's start and end (epoch s: where a worker sat idle). CPU time
     stays comparable on a loaded machine where wall time does not (docs/TESTING.md)."""
     if not _CPU_LOG:
         yield
@@ -112,6 +113,7 @@ def pytest_runtest_protocol(item, nextitem):
     s0 = resource.getrusage(resource.RUSAGE_SELF)
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
+    e0 = time.time()
     yield
     t1 = time.perf_counter()
     s1 = resource.getrusage(resource.RUSAGE_SELF)
@@ -119,4 +121,8 @@ def pytest_runtest_protocol(item, nextitem):
     own = (s1.ru_utime - s0.ru_utime) + (s1.ru_stime - s0.ru_stime)
     kids = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime) + optimised.child_cpu_s - k0
     with open(_CPU_LOG, "a") as log:  # one short line per write: O_APPEND keeps lines whole
-        log.write(f"{item.nodeid}\t{t1 - t0:.3f}\t{own:.3f}\t{kids:.3f}\n")
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "-")
+        log.write(
+            f"{item.nodeid}\t{t1 - t0:.3f}\t{own:.3f}\t{kids:.3f}"
+            f"\t{worker}\t{e0:.3f}\t{e0 + t1 - t0:.3f}\n"
+        )
