@@ -28,7 +28,7 @@ from .delegate import RenderDelegate
 from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
 from .material_binding import MaterialParams, alpha_floor, material_params
-from .receiver_bounds import leaf_boxes, world_boxes
+from .receiver_bounds import box_corners, leaf_boxes, world_boxes
 from .textures import TextureCache, TextureKey
 
 __all__ = ["BatchArrays", "DrawBatch", "GLRenderDelegate", "GeometryBuffers", "MaterialParams"]
@@ -57,6 +57,10 @@ class GeometryBuffers:
     #: Texture coordinates, tangent frame, material primvars (10 floats per vertex):
     #: only for meshes that have texture coordinates or material primvars.
     vbo_material: moderngl.Buffer | None = None
+    #: ``receiver_bounds.box_corners(*leaves)``, made on first use (None: not yet).
+    leaf_corners: np.ndarray | None = None
+    #: (8, 4) the corners of ``bounds`` (homogeneous), made on first use (None: not yet).
+    bound_corners: np.ndarray | None = None
 
 
 @dataclass
@@ -279,6 +283,7 @@ class GLRenderDelegate(RenderDelegate):
             if extra is not None:
                 g.vbo_material = self.ctx.buffer(extra.tobytes())
             g.leaves = leaves
+            g.leaf_corners = g.bound_corners = None
             self.geometry[key] = g
         else:
             if extra is not None:
@@ -299,6 +304,7 @@ class GLRenderDelegate(RenderDelegate):
             g.index_count = int(idx.size)
             g.bounds = bounds
             g.leaves = leaves
+            g.leaf_corners = g.bound_corners = None
             self._batch_arrays = None
             for b in self.batches:
                 if b.geometry_key == key:
@@ -379,11 +385,11 @@ class GLRenderDelegate(RenderDelegate):
             self.warn_once("texture:" + w, w)
         cache.warnings.clear()
 
-    def _mesh_entry(self, path: str, m: prims.MeshPrim, n_recv: int) -> _MeshEntry | None:
+    def _mesh_entry(self, path: str, m: prims.MeshPrim, n_recv: int) -> _MeshEntry:
         """``path``'s part of the draw batches: the entry kept from the last rebuild when
         it still holds (the mesh synced nothing since, its geometry and material are the
         objects it was made from, its receiver boxes took the same branch of the
-        ``limits.RECEIVER_BOXES_MAX`` budget), else made anew. None: no finite corner."""
+        ``limits.RECEIVER_BOXES_MAX`` budget), else made anew."""
         key_g = m.geometry_key or path
         sp = self.materials.get(m.material) if m.material else None
         mat = sp.material if sp is not None else None
@@ -409,8 +415,10 @@ class GLRenderDelegate(RenderDelegate):
         k = self._batch_key(key_g, mp, m)  # == self.batch_key(path, m)
         xf = m.world_transforms()
         blo, bhi = g.bounds
-        corners = np.array(np.meshgrid(*zip(blo, bhi), indexing="ij")).reshape(3, -1).T
-        corners = np.c_[corners, np.ones(8)]
+        corners = g.bound_corners
+        if corners is None:
+            corners = np.array(np.meshgrid(*zip(blo, bhi), indexing="ij")).reshape(3, -1).T
+            corners = g.bound_corners = np.c_[corners, np.ones(8)]
         wc = np.einsum("ci,kij->kcj", corners, xf)[..., :3].reshape(-1, 3)
         wc = wc[np.all(np.isfinite(wc), axis=1)]
         box = None
@@ -424,7 +432,9 @@ class GLRenderDelegate(RenderDelegate):
             glo, ghi = g.leaves
             mode = _receiver_mode(n_recv, len(xf), len(glo))
             if mode == 0:
-                rlo, rhi = world_boxes(glo, ghi, xf)
+                if g.leaf_corners is None:
+                    g.leaf_corners = box_corners(glo, ghi)
+                rlo, rhi = world_boxes(glo, ghi, xf, g.leaf_corners)
             elif mode == 1:
                 rlo, rhi = world_boxes(np.array([blo]), np.array([bhi]), xf)
             else:
