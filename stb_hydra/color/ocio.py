@@ -378,6 +378,8 @@ class _GpuProgram:
         )
         self.vao = ctx.vertex_array(self.program, [])
         self.textures: list[tuple[int, Any]] = []  # (unit, moderngl texture)
+        #: The exposure whose uniforms the program holds (None: not set yet).
+        self._pushed_exposure: float | None = None
 
         def bind(sampler_name: str, texture: Any, interpolation: Any) -> None:
             mode = moderngl.NEAREST if interpolation == ocio.INTERP_NEAREST else moderngl.LINEAR
@@ -411,7 +413,12 @@ class _GpuProgram:
         )
 
     def set_uniforms(self, exposure: float) -> None:
-        """Push OCIO's dynamic properties (exposure) and other uniforms to the program."""
+        """Push OCIO's dynamic properties (exposure) and other uniforms to the program;
+        nothing when the program already holds them for this exposure (only this method
+        writes them, and they depend on nothing else)."""
+        if exposure == self._pushed_exposure:
+            return
+        self._pushed_exposure = exposure
         desc = self.desc
         if desc.hasDynamicProperty(ocio.DYNAMIC_PROPERTY_EXPOSURE):
             desc.getDynamicProperty(ocio.DYNAMIC_PROPERTY_EXPOSURE).setDouble(exposure)

@@ -28,7 +28,7 @@ from .delegate import RenderDelegate
 from .dome_env import DomeEnvironment
 from .light_buffer import LIGHT_SHADOW_SLOT_COLUMN, LIGHT_STRIDE_BYTES, pack_lights
 from .material_binding import MaterialParams, alpha_floor, material_params
-from .receiver_bounds import leaf_boxes, world_boxes
+from .receiver_bounds import box_corners, leaf_boxes, world_boxes
 from .textures import TextureCache, TextureKey
 
 __all__ = ["BatchArrays", "DrawBatch", "GLRenderDelegate", "GeometryBuffers", "MaterialParams"]
@@ -57,6 +57,10 @@ class GeometryBuffers:
     #: Texture coordinates, tangent frame, material primvars (10 floats per vertex):
     #: only for meshes that have texture coordinates or material primvars.
     vbo_material: moderngl.Buffer | None = None
+    #: ``receiver_bounds.box_corners(*leaves)``, made on first use (None: not yet).
+    leaf_corners: np.ndarray | None = None
+    #: (8, 4) the corners of ``bounds`` (homogeneous), made on first use (None: not yet).
+    bound_corners: np.ndarray | None = None
 
 
 @dataclass
@@ -76,6 +80,46 @@ class DrawBatch:
     @property
     def count(self) -> int:
         return len(self.models)
+
+
+_NO_BOXES = (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+
+
+def _receiver_mode(n_recv: int, instances: int, leaves: int) -> int:
+    """Which receiver boxes a mesh gets after ``n_recv`` boxes of the meshes before it
+    (within ``limits.RECEIVER_BOXES_MAX``): 0 its leaf boxes per instance, 1 one box per
+    instance, 2 one box (the mesh's world AABB)."""
+    if n_recv + instances * leaves <= limits.RECEIVER_BOXES_MAX:
+        return 0
+    if n_recv + instances <= limits.RECEIVER_BOXES_MAX:
+        return 1
+    return 2
+
+
+@dataclass(slots=True)
+class _MeshEntry:
+    """One visible mesh's part of the draw batches (``GLRenderDelegate._mesh_entry``):
+    its batch key, geometry key, material parameters and dynamic flag, what they were
+    made from (material sprim and record, geometry buffers with their object-space
+    bounds and leaf boxes: identity-checked), its world matrices ((k, 4, 4), row
+    vectors, render frame), its world AABB (metres; None: no finite corner) and its
+    receiver boxes (branch of ``_receiver_mode``; lo, hi (n, 3) m, alpha floor (n,))."""
+
+    key: tuple
+    key_g: str
+    mp: MaterialParams
+    dynamic: bool
+    mat_sprim: Any
+    mat: Any
+    geom: GeometryBuffers
+    bounds: tuple[np.ndarray, np.ndarray]
+    leaves: tuple[np.ndarray, np.ndarray]
+    xf: np.ndarray
+    box: tuple[np.ndarray, np.ndarray] | None
+    recv_mode: int
+    recv: tuple[np.ndarray, np.ndarray, np.ndarray]
+    #: Kept by the rebuild under way (not made anew).
+    reused: bool = False
 
 
 @dataclass(frozen=True)
@@ -100,6 +144,15 @@ class GLRenderDelegate(RenderDelegate):
         self._batch_prev: dict[tuple, np.ndarray] = {}
         self._batches_dirty = True
         self._static_changed: set[str] = set()
+        #: Per visible mesh, its part of the batches as of the last rebuild (kept while
+        #: the mesh syncs nothing: ``_mesh_entry``), and the meshes synced since.
+        self._mesh_entries: dict[str, _MeshEntry] = {}
+        self._meshes_changed: set[str] = set()
+        #: Per batch key as of the last rebuild: the batch, its meshes in order, and the
+        #: geometry buffers its VAOs read.
+        self._batch_of: dict[tuple, DrawBatch] = {}
+        self._batch_members: dict[tuple, list[str]] = {}
+        self._batch_geom: dict[tuple, GeometryBuffers] = {}
         self.light_ssbo: moderngl.Buffer | None = None
         self._fov_version = -1
         self._fov_uploaded_rows: np.ndarray | None = None
@@ -152,6 +205,7 @@ class GLRenderDelegate(RenderDelegate):
         b = self.mesh_bounds.pop(path, None)
         if b is not None:
             self.changed_static_bounds.append(b)
+        self._meshes_changed.add(path)
         for key, g in list(self.geometry.items()):
             if path in g.users:
                 g.users.discard(path)
@@ -175,6 +229,7 @@ class GLRenderDelegate(RenderDelegate):
             bits = rp.pending_bits
             if not bits:
                 continue
+            self._meshes_changed.add(path)
             if bits & _GEOM_BITS and rp.mesh is not None:
                 self._upload_geometry(path, rp.mesh, done)
             if bits & _BATCH_BITS:
@@ -228,6 +283,7 @@ class GLRenderDelegate(RenderDelegate):
             if extra is not None:
                 g.vbo_material = self.ctx.buffer(extra.tobytes())
             g.leaves = leaves
+            g.leaf_corners = g.bound_corners = None
             self.geometry[key] = g
         else:
             if extra is not None:
@@ -248,6 +304,7 @@ class GLRenderDelegate(RenderDelegate):
             g.index_count = int(idx.size)
             g.bounds = bounds
             g.leaves = leaves
+            g.leaf_corners = g.bound_corners = None
             self._batch_arrays = None
             for b in self.batches:
                 if b.geometry_key == key:
@@ -328,10 +385,77 @@ class GLRenderDelegate(RenderDelegate):
             self.warn_once("texture:" + w, w)
         cache.warnings.clear()
 
+    def _mesh_entry(self, path: str, m: prims.MeshPrim, n_recv: int) -> _MeshEntry:
+        """``path``'s part of the draw batches: the entry kept from the last rebuild when
+        it still holds (the mesh synced nothing since, its geometry and material are the
+        objects it was made from, its receiver boxes took the same branch of the
+        ``limits.RECEIVER_BOXES_MAX`` budget), else made anew."""
+        key_g = m.geometry_key or path
+        sp = self.materials.get(m.material) if m.material else None
+        mat = sp.material if sp is not None else None
+        e = self._mesh_entries.get(path)
+        g = self.geometry.get(key_g)
+        if (
+            e is not None
+            and path not in self._meshes_changed
+            and e.geom is g
+            and g is not None
+            and e.bounds is g.bounds
+            and e.leaves is g.leaves
+            and e.mat_sprim is sp
+            and e.mat is mat
+            and e.recv_mode == _receiver_mode(n_recv, len(e.xf), len(g.leaves[0]))
+        ):
+            e.reused = True
+            return e
+        if g is None:
+            self._upload_geometry(path, m)
+            g = self.geometry[key_g]
+        mp = material_params(mat, m)  # == self.resolve_material(m)
+        k = self._batch_key(key_g, mp, m)  # == self.batch_key(path, m)
+        xf = m.world_transforms()
+        blo, bhi = g.bounds
+        corners = g.bound_corners
+        if corners is None:
+            corners = np.array(np.meshgrid(*zip(blo, bhi), indexing="ij")).reshape(3, -1).T
+            corners = g.bound_corners = np.c_[corners, np.ones(8)]
+        wc = np.einsum("ci,kij->kcj", corners, xf)[..., :3].reshape(-1, 3)
+        wc = wc[np.all(np.isfinite(wc), axis=1)]
+        box = None
+        mode = -1
+        recv = _NO_BOXES
+        if len(wc):
+            mlo, mhi = wc.min(axis=0), wc.max(axis=0)
+            box = (mlo, mhi)
+            # receiver boxes: the leaves of every instance, else one box per
+            # instance, else the mesh's (within limits.RECEIVER_BOXES_MAX in all)
+            glo, ghi = g.leaves
+            mode = _receiver_mode(n_recv, len(xf), len(glo))
+            if mode == 0:
+                if g.leaf_corners is None:
+                    g.leaf_corners = box_corners(glo, ghi)
+                rlo, rhi = world_boxes(glo, ghi, xf, g.leaf_corners)
+            elif mode == 1:
+                rlo, rhi = world_boxes(np.array([blo]), np.array([bhi]), xf)
+            else:
+                rlo, rhi = mlo[None], mhi[None]
+            if len(rlo) == 0:
+                rlo, rhi = mlo[None], mhi[None]
+            recv = (rlo, rhi, np.full(len(rlo), alpha_floor(mp)))
+        e = _MeshEntry(k, key_g, mp, m.dynamic, sp, mat, g, g.bounds, g.leaves, xf, box, mode, recv)
+        self._mesh_entries[path] = e
+        return e
+
     def _rebuild_batches(self) -> None:
-        groups: dict[tuple, list[np.ndarray]] = {}
-        meta: dict[tuple, tuple[str, MaterialParams, bool]] = {}
-        gbounds: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
+        """Group the visible meshes into draw batches (instanced draws), with the world
+        bounds per mesh, per batch and of the scene and the receiver boxes. Incremental
+        (Hydra's dirty bits): a mesh that synced nothing since the last rebuild keeps its
+        entry (material, transforms, bounds, receiver boxes), and a batch whose meshes
+        all kept theirs is kept whole (its instance buffer and VAOs); a changed batch
+        keeps its GPU objects and re-uploads its instances. The result is the one a
+        rebuild from scratch gives (same batches in the same order, same matrices)."""
+        groups: dict[tuple, list[_MeshEntry]] = {}
+        members: dict[tuple, list[str]] = {}
         lo = np.full(3, np.inf)
         hi = np.full(3, -np.inf)
         new_bounds: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -339,47 +463,30 @@ class GLRenderDelegate(RenderDelegate):
         recv_hi: list[np.ndarray] = []
         recv_alpha: list[np.ndarray] = []
         n_recv = 0
+        for e in self._mesh_entries.values():
+            e.reused = False
+        live: set[str] = set()
         for path, rp in self.meshes.items():
             m = rp.mesh
             if m is None or not m.visible or len(m.indices) == 0:
                 continue
-            key_g = m.geometry_key or path
-            if key_g not in self.geometry:
-                self._upload_geometry(path, m)
-            mp = self.resolve_material(m)
-            k = self._batch_key(key_g, mp, m)  # == self.batch_key(path, m)
-            xf = m.world_transforms()
-            groups.setdefault(k, []).append(xf)
-            meta[k] = (key_g, mp, m.dynamic)
-            blo, bhi = self.geometry[key_g].bounds
-            corners = np.array(np.meshgrid(*zip(blo, bhi), indexing="ij")).reshape(3, -1).T
-            corners = np.c_[corners, np.ones(8)]
-            wc = np.einsum("ci,kij->kcj", corners, xf)[..., :3].reshape(-1, 3)
-            wc = wc[np.all(np.isfinite(wc), axis=1)]
-            if len(wc):
-                mlo, mhi = wc.min(axis=0), wc.max(axis=0)
-                new_bounds[path] = (mlo, mhi)
-                # receiver boxes: the leaves of every instance, else one box per
-                # instance, else the mesh's (within limits.RECEIVER_BOXES_MAX in all)
-                glo, ghi = self.geometry[key_g].leaves
-                if n_recv + len(xf) * len(glo) <= limits.RECEIVER_BOXES_MAX:
-                    rlo, rhi = world_boxes(glo, ghi, xf)
-                elif n_recv + len(xf) <= limits.RECEIVER_BOXES_MAX:
-                    rlo, rhi = world_boxes(np.array([blo]), np.array([bhi]), xf)
-                else:
-                    rlo, rhi = mlo[None], mhi[None]
-                if len(rlo) == 0:
-                    rlo, rhi = mlo[None], mhi[None]
+            e = self._mesh_entry(path, m, n_recv)
+            live.add(path)
+            groups.setdefault(e.key, []).append(e)
+            members.setdefault(e.key, []).append(path)
+            if e.box is not None:
+                mlo, mhi = e.box
+                new_bounds[path] = e.box
+                rlo, rhi, ralpha = e.recv
                 recv_lo.append(rlo)
                 recv_hi.append(rhi)
-                recv_alpha.append(np.full(len(rlo), alpha_floor(mp)))
+                recv_alpha.append(ralpha)
                 n_recv += len(rlo)
                 lo = np.minimum(lo, mlo)
                 hi = np.maximum(hi, mhi)
-                g0 = gbounds.get(k)
-                gbounds[k] = (
-                    (mlo, mhi) if g0 is None else (np.minimum(g0[0], mlo), np.maximum(g0[1], mhi))
-                )
+        for path in [p for p in self._mesh_entries if p not in live]:
+            del self._mesh_entries[path]
+        self._meshes_changed.clear()
         for path in self._static_changed:
             nb = new_bounds.get(path)
             sp = self.meshes.get(path)
@@ -392,25 +499,68 @@ class GLRenderDelegate(RenderDelegate):
             if recv_lo
             else (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
         )
+        old_of = self._batch_of
+        kept: set[int] = set()
+        new: list[DrawBatch] = []
+        prev_map: dict[tuple, np.ndarray] = {}
+        for k, entries in groups.items():
+            gk, mp, dyn = entries[-1].key_g, entries[-1].mp, entries[-1].dynamic
+            geom = entries[-1].geom
+            old = old_of.get(k)
+            if old is not None and self._batch_geom.get(k) is not geom:
+                old = None  # its VAOs read released buffers
+            if (
+                old is not None
+                and all(e.reused for e in entries)
+                and self._batch_members.get(k) == members[k]
+                and self._batch_prev.get(k) is old.models
+            ):
+                # nothing in it changed: made anew, its previous matrices would be these
+                # (the upload is skipped when the buffer already holds them)
+                if old.prev_models is not old.models:
+                    same = np.array_equal(old.prev_models, old.models)
+                    old.prev_models = old.models
+                    if not same:
+                        self._upload_instances(old)
+                kept.add(id(old))
+                new.append(old)
+                prev_map[k] = old.models
+                continue
+            models = np.concatenate([e.xf for e in entries]).astype(np.float32)
+            prev = self._batch_prev.get(k)
+            if prev is None or prev.shape != models.shape:
+                prev = models
+            bounds = (np.zeros(3), np.zeros(3))
+            g0 = None
+            for e in entries:
+                if e.box is not None:
+                    mlo, mhi = e.box
+                    g0 = (
+                        (mlo, mhi)
+                        if g0 is None
+                        else (np.minimum(g0[0], mlo), np.maximum(g0[1], mhi))
+                    )
+            if g0 is not None:
+                bounds = g0
+            b = DrawBatch(gk, mp, dyn, models, prev, bounds)
+            b.links = k[3]
+            if old is not None:  # the same GPU objects, new contents
+                kept.add(id(old))
+                b.instance_buffer, b.vaos = old.instance_buffer, old.vaos
+            self._upload_instances(b)
+            new.append(b)
+            prev_map[k] = models
         for old in self.batches:
+            if id(old) in kept:
+                continue
             if old.instance_buffer is not None:
                 old.instance_buffer.release()
             for vao in old.vaos.values():
                 vao.release()
-        new: list[DrawBatch] = []
-        prev_map: dict[tuple, np.ndarray] = {}
-        for k, mats in groups.items():
-            models = np.concatenate(mats).astype(np.float32)
-            prev = self._batch_prev.get(k)
-            if prev is None or prev.shape != models.shape:
-                prev = models
-            gk, mp, dyn = meta[k]
-            b = DrawBatch(gk, mp, dyn, models, prev, gbounds.get(k, (np.zeros(3), np.zeros(3))))
-            b.links = k[3]
-            self._upload_instances(b)
-            new.append(b)
-            prev_map[k] = models
         self._batch_prev = prev_map
+        self._batch_of = dict(zip(groups, new, strict=True))
+        self._batch_members = members
+        self._batch_geom = {k: entries[-1].geom for k, entries in groups.items()}
         self.batches = new
         self.has_clearcoat = any(b.material.coated for b in new)
         self._commit_textures()

@@ -83,18 +83,31 @@ def split_leaf_boxes(
     return lo, hi
 
 
+def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(G, 8, 4) the eight corners of each object-space box ``lo``, ``hi`` (G, 3), as
+    homogeneous row vectors (w = 1): ``world_boxes``' input, made once per geometry."""
+    sel = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
+    corners = np.where(sel[None, :, :] == 0, lo[:, None, :], hi[:, None, :])  # (G, 8, 3)
+    return np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+
+
 def world_boxes(
-    lo: np.ndarray, hi: np.ndarray, transforms: np.ndarray
+    lo: np.ndarray,
+    hi: np.ndarray,
+    transforms: np.ndarray,
+    corners: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """World AABBs ((K x G, 3) lo, hi) of object-space boxes ``lo``, ``hi`` (G, 3) under
     each of ``transforms`` ((K, 4, 4), row vectors: p_world = [p, 1] @ M): the AABB of
-    each box's eight transformed corners; boxes with a non-finite corner are dropped."""
+    each box's eight transformed corners; boxes with a non-finite corner are dropped.
+    ``corners``: ``box_corners(lo, hi)`` when the caller keeps it."""
     if len(lo) == 0 or len(transforms) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3))
-    sel = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, -1).T
-    corners = np.where(sel[None, :, :] == 0, lo[:, None, :], hi[:, None, :])  # (G, 8, 3)
-    corners = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+    if corners is None:
+        corners = box_corners(lo, hi)
     wc = np.einsum("gci,kij->kgcj", corners, np.asarray(transforms, np.float64))[..., :3]
     wlo, whi = wc.min(axis=2).reshape(-1, 3), wc.max(axis=2).reshape(-1, 3)
+    if np.isfinite(wlo).all() and np.isfinite(whi).all():
+        return wlo, whi
     ok = np.all(np.isfinite(wlo), axis=1) & np.all(np.isfinite(whi), axis=1)
     return wlo[ok], whi[ok]

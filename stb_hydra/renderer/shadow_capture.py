@@ -182,11 +182,19 @@ class ShadowCapturer:
             for j in np.nonzero(vis[i])[0].tolist():
                 draw.draw(delegate, batches[j])
 
-    def visible(self, delegate: GLRenderDelegate, c: Capture, dynamic: bool) -> np.ndarray:
+    def visible(
+        self,
+        delegate: GLRenderDelegate,
+        c: Capture,
+        dynamic: bool,
+        vps: np.ndarray | None = None,
+    ) -> np.ndarray:
         """(F, B) bool: batch b is drawn into face f (F = 6 omni, 1 spot); static maps
-        skip dynamic geometry, and every map the batches outside the light's shadow link."""
+        skip dynamic geometry, and every map the batches outside the light's shadow link.
+        ``vps``: ``capture_view_projs(c)`` when the caller has it."""
         arr = delegate.batch_arrays()
-        vps = capture_view_projs(c)
+        if vps is None:
+            vps = capture_view_projs(c)
         keep = boxes_in_sphere(np.array(c.position), np.array(c.range), arr.lo, arr.hi)
         if not dynamic:
             keep &= ~arr.dynamic
@@ -219,13 +227,14 @@ class ShadowCapturer:
         interior = rect.size - 2 * border
         if interior < 4:
             return CaptureWork(0, 0, 0.0)
-        vis = self.visible(delegate, c, dynamic)
+        vps64 = capture_view_projs(c)
+        vis = self.visible(delegate, c, dynamic, vps64)
         arr = delegate.batch_arrays()
         batches = arr.batches
         triangles = float((vis * arr.triangles).sum())
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        vps = capture_view_projs(c).astype(np.float32)
+        vps = vps64.astype(np.float32)
         if c.omni:
             f = max(interior // 2, 4)
             tex, fbo = self._temp(3 * f, 2 * f)
@@ -283,14 +292,15 @@ class ShadowCapturer:
             return CaptureWork(0, 0, 0.0)
         ctx = self.ctx
         sel = sorted(set(faces))
-        vis = self.visible(delegate, c, dynamic)
+        vps64 = capture_view_projs(c)
+        vis = self.visible(delegate, c, dynamic, vps64)
         triangles = float((vis[sel] * delegate.batch_arrays().triangles).sum())
         f = max(interior // 2, 4)
         tex, fbo = self._stage(key, 3 * f, 2 * f, first)
         fbo.use()
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        self._draw_faces(delegate, vis, capture_view_projs(c).astype(np.float32), sel, f)
+        self._draw_faces(delegate, vis, vps64.astype(np.float32), sel, f)
         ctx.disable(moderngl.DEPTH_TEST)
         if complete:
             self._copy(delegate, c, rect, tex, interior)

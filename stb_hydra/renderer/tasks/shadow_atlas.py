@@ -30,7 +30,7 @@ from ...shadows.capture import (
     spot_view_proj,
 )
 from ...shadows.cost import ShadowCostModel
-from ...shadows.culling import triangles_submitted
+from ...shadows.culling import boxes_in_sphere, triangles_submitted
 from ...shadows.scheduler import SchedulerStats, ShadowScheduler, ShadowUpdate
 from ..frame import FrameContext
 from ..graph import Imported, Rec
@@ -39,7 +39,7 @@ from ..shadow_capture import ShadowCapturer, calibrate_cost
 from .base import Pass
 
 if TYPE_CHECKING:
-    from ..gl_delegate import GLRenderDelegate
+    from ..gl_delegate import BatchArrays, GLRenderDelegate
 
 #: Angular span per side of an octahedral omni map (``shadows.capture.texel_angle``).
 OMNI_SPAN = float(np.sqrt(4.0 * np.pi))
@@ -94,6 +94,7 @@ class ShadowAtlasTask(Pass):
         self.capture_mode = capture_mode
         self.capturer: ShadowCapturer | None = None
         self._work_batches: object = None  # batch list the per-light work was computed for
+        self._work_arrays: BatchArrays | None = None  # and its arrays
         #: Last frame's capture time (ms, wall clock; None when not measured).
         self.last_capture_ms: float | None = None
         #: Tests: plan nothing, so maps keep their last capture.
@@ -228,11 +229,37 @@ class ShadowAtlasTask(Pass):
             self._seen_version[r] = t.cols["version"][r]
             touched.append(key)
         batches = self.delegate.batches
-        if batches is not self._work_batches:  # geometry changed: every light's work
+        if batches is not self._work_batches:  # geometry changed: the lights it reaches
             self._work_batches = batches
-            touched = list(self._captures)
+            touched = self._reached_by_geometry(touched)
         self._update_work(touched)
         return changed
+
+    def _reached_by_geometry(self, touched: list[str]) -> list[str]:
+        """The batches were rebuilt: ``touched`` and every registered light whose work
+        (``_update_work``) may differ -- all of them when the batch count changed, else
+        those whose range sphere touches a batch whose bounds, triangles or dynamic flag
+        changed, before or after (a batch outside a light's sphere adds nothing to its
+        count either way: the others' work is the same number)."""
+        arr = self.delegate.batch_arrays()
+        old, self._work_arrays = self._work_arrays, arr
+        if old is None or len(old.lo) != len(arr.lo):
+            return list(self._captures)
+        diff = ~(
+            (old.lo == arr.lo).all(axis=1)
+            & (old.hi == arr.hi).all(axis=1)
+            & (old.triangles == arr.triangles)
+            & (old.dynamic == arr.dynamic)
+        )
+        if not diff.any() or not self._captures:
+            return touched
+        reg = list(self._captures)
+        pos = np.array([self._captures[k].position for k in reg], dtype=np.float64)
+        rng = np.array([self._captures[k].range for k in reg], dtype=np.float64)
+        hit = boxes_in_sphere(pos, rng, old.lo[diff], old.hi[diff]).any(axis=1)
+        hit |= boxes_in_sphere(pos, rng, arr.lo[diff], arr.hi[diff]).any(axis=1)
+        seen = set(touched)
+        return touched + [reg[i] for i in np.nonzero(hit)[0].tolist() if reg[i] not in seen]
 
     def _update_work(self, keys: list[str]) -> None:
         """Triangles each of ``keys``' captures submits after culling, per face (cost
