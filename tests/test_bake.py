@@ -202,6 +202,27 @@ def test_mesh_xatlas_cannot_take_warns_and_stays_dynamic(tmp_path, gl_ctx):
     np.testing.assert_allclose(img[on_bad, :3], ref[on_bad, :3], rtol=0.02)
 
 
+def test_xatlas_packs_in_a_child_process_and_reports_its_errors():
+    """xatlas's Atlas can hang when destroyed (its scheduler's lost wake-up,
+    stb_hydra/bake/xatlas_process.py): every packing runs in a child that never destroys
+    its atlas, so this process never imports xatlas (no test imports it directly); the
+    result is a valid packing, and a mesh xatlas refuses is a one-line error, not a
+    hang or a crash."""
+    import sys
+
+    from stb_hydra.bake.xatlas_process import generate
+
+    # A unit square of two triangles at 8 texels/m: one chart, one atlas.
+    pts = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]], np.float32)
+    tris = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    vmap, idx, uvs, size, count = generate(pts, tris, 8.0, 1)
+    assert count == 1 and idx.shape == (2, 3) and len(uvs) == len(vmap)
+    assert uvs.min() >= 0.0 and uvs.max() <= 1.0 and 8 <= size.min() <= size.max() <= 16
+    assert "xatlas" not in sys.modules
+    with pytest.raises(RuntimeError, match="out of range"):
+        generate(pts, np.array([[0, 1, 99]], np.uint32), 8.0, 1)
+
+
 def test_mobility_token_default_static_and_bad_value():
     """``stb:mobility``: default dynamic, "static" read, anything else warned -> dynamic."""
     from stagegen import usda_stage

@@ -195,23 +195,14 @@ def _hash(points: np.ndarray, tris: np.ndarray, density: float) -> str:
 
 
 def _xatlas(points: np.ndarray, tris: np.ndarray, density: float) -> tuple[np.ndarray, ...]:
-    """(vmapping, indices, uvs, [w, h]) from xatlas; uvs normalised to [0, 1]."""
-    import xatlas
+    """(vmapping, indices, uvs, [w, h]) from xatlas; uvs normalised to [0, 1]. In a
+    child process (:mod:`.xatlas_process`: destroying an xatlas ``Atlas`` can hang)."""
+    from .xatlas_process import generate
 
-    atlas = xatlas.Atlas()
-    atlas.add_mesh(
-        np.ascontiguousarray(points, dtype=np.float32), np.ascontiguousarray(tris, np.uint32)
-    )
-    po = xatlas.PackOptions()
-    po.texels_per_unit = float(density)
-    po.padding = limits.BAKE_PADDING_TEXELS
-    po.bilinear = True
-    po.resolution = 0
-    atlas.generate(xatlas.ChartOptions(), po)
-    if atlas.atlas_count != 1:
-        raise UnwrapError(f"xatlas made {atlas.atlas_count} atlases (expected 1)")
-    vmap, idx, uvs = atlas[0]
-    return vmap, idx, uvs, np.array([atlas.width, atlas.height])
+    vmap, idx, uvs, size, count = generate(points, tris, density, limits.BAKE_PADDING_TEXELS)
+    if count != 1:
+        raise UnwrapError(f"xatlas made {count} atlases (expected 1)")
+    return vmap, idx, uvs, size
 
 
 def _pack(points: np.ndarray, tris: np.ndarray, density: float) -> tuple[np.ndarray, ...]:
