@@ -14,7 +14,10 @@ DEMO_FLAGS ?= --lighting stb --accumulate 16
 # runs N, PYTEST_XDIST=0 runs serially in one process.
 PYTEST_XDIST ?= auto
 PYTEST_WORKERS := $(if $(filter auto,$(PYTEST_XDIST)),$(shell n=$$(nproc 2>/dev/null || echo 1); [ $$n -gt 2 ] && n=2; echo $$n),$(PYTEST_XDIST))
-PYTEST_PAR := $(if $(filter-out 0 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadfile)
+# --no-loadscope-reorder: xdist would hand out modules by test count (most first), which
+# put the long one-test modules last while the other worker idled; tests/conftest.py
+# orders them (long modules first) and this keeps that order (docs/TESTING.md).
+PYTEST_PAR := $(if $(filter-out 0 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder)
 
 .PHONY: demo test lint bench clean sysdeps
 

@@ -46,6 +46,11 @@ def _child_init() -> None:
     # Before the child's first GL context: llvmpipe reads the flag when it starts.
     # Empty = LLVM's default optimisation (conftest keeps an existing value).
     os.environ["GALLIVM_PERF"] = ""
+    # USD serially, as in the xdist workers (tests/conftest.py): the other worker has
+    # the other core, and TBB's idle threads spin.
+    from pxr import Work
+
+    Work.SetConcurrencyLimit(1)
 
 
 def _timed(fn, args: tuple, kwargs: dict):

@@ -136,6 +136,7 @@ MODEL_SCENES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(MODEL_SCENES))
 def test_every_light_model_loop_equals_reference(gl_ctx, name):
     """With every light model in view, each in its loop (the LOOP_* defines the scene
