@@ -443,3 +443,56 @@ def test_attribute_authored_between_population_and_first_sync_is_read():
     lp = ri.prims["/L"].light
     assert lp.has_cone and lp.cone_angle == pytest.approx(30.0)
     assert lp.intensity[1] == 0.0 and lp.intensity[0] > 0.0
+
+
+MESH_VIS_USDA = """#usda 1.0
+(
+    upAxis = "Y"
+    metersPerUnit = 1
+)
+def Xform "World"
+{
+    def Cube "Box"
+    {
+        double size = 1
+    }
+    def Mesh "Quad"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-1, 0, -1), (1, 0, -1), (1, 0, 1), (-1, 0, 1)]
+        token visibility.timeSamples = {
+            1: "inherited",
+            2: "invisible",
+        }
+    }
+}
+"""
+
+
+def test_mesh_visibility_edits_and_samples_reach_a_running_index():
+    """A plain mesh's visibility is read from the stage after the first sync: hiding it
+    (an edit, on the prim or an ancestor) and a time sample that hides it reach the
+    render prims as a fresh index at the same state sees them. (The population's
+    visibility hint answered every later read until 2026-12-06: an edited mesh stayed
+    drawn.)"""
+    stage = usda_stage(MESH_VIS_USDA)
+    si, ri = _index(stage, 1.0)
+
+    def shown():
+        return {p: rp.mesh.visible for p, rp in ri.delegate.meshes.items()}
+
+    assert shown() == {"/World/Box": True, "/World/Quad": True}
+    UsdGeom.Imageable(stage.GetPrimAtPath("/World/Box")).MakeInvisible()
+    si.apply_pending_updates()
+    ri.sync_all()
+    assert shown() == {"/World/Box": False, "/World/Quad": True}
+    si.set_time(2.0)
+    ri.sync_all()
+    assert shown() == {"/World/Box": False, "/World/Quad": False}
+    UsdGeom.Imageable(stage.GetPrimAtPath("/World/Box")).MakeVisible()
+    si.apply_pending_updates()
+    ri.sync_all()
+    fresh = _index(stage, 2.0)[1]
+    assert shown() == {p: rp.mesh.visible for p, rp in fresh.delegate.meshes.items()}
+    assert shown() == {"/World/Box": True, "/World/Quad": False}

@@ -79,9 +79,13 @@ class _DataSource:
         return self.index.world_matrix(self.entry)
 
     def visible(self) -> bool:
+        """Whether the prim is shown at the index's time. The population's hint (its
+        walk already knew) answers the first read only: after it, an edit or a time
+        change must be read from the stage."""
         e = self.entry
-        if e.vis_hint is not None:
-            return e.vis_hint
+        hint, e.vis_hint = e.vis_hint, None
+        if hint is not None:
+            return hint
         return self.index.is_visible(e)
 
 
