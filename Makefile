@@ -3,6 +3,14 @@
 # except python3 (>=3.10); missing system GL/EGL libraries are installed via apt
 # when we are root (CI), see tools/ensure_system_deps.sh.
 
+# Python's bytecode cache stays on for these runs even where the environment turns it
+# off (PYTHONDONTWRITEBYTECODE=1, as this machine's image does): otherwise every test
+# process, CLI subprocess, Ray worker and render child compiles stb_hydra's modules from
+# source again (a CLI start 0.9 -> 0.64 s), and each pytest worker rewrites the asserts
+# of every test module again (~5 s a worker). __pycache__/ is git-ignored;
+# docs/TESTING.md, "Bytecode".
+unexport PYTHONDONTWRITEBYTECODE
+
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
