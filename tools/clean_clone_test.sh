@@ -1,17 +1,21 @@
 #!/bin/bash
 # Issue 32's measurement: a clean clone of this checkout beside ../shared, `CI=true make
 # test` cold (a new empty MESA_SHADER_CACHE_DIR) and then warm (the same cache, the venv
-# made), each under /usr/bin/time -v. Logs and a summary go to /tmp/clean_clone_N.*.
-#   tools/clean_clone_test.sh N        # N: a run number (the clone is ../clean_clone_N)
+# made), each under /usr/bin/time -v; WARM warm runs in all (default 1; the issue asks
+# for three). Logs and a summary go to /tmp/clean_clone_N.*.
+#   tools/clean_clone_test.sh N [WARM]   # N: a run number (the clone is ../clean_clone_N)
 set -u
 n=${1:?run number}
+warm=${2:-1}
 src=$(cd "$(dirname "$0")/.." && pwd)
 dst=$(dirname "$src")/clean_clone_$n
 cache=$(mktemp -d /tmp/mesa_clean_clone_$n.XXXX)
 rm -rf "$dst" && git clone -q "$src" "$dst" && cd "$dst" || exit 1
 sum=/tmp/clean_clone_$n.summary
 echo "commit $(git rev-parse --short HEAD) start $(date +%T) load $(cut -d' ' -f1-3 /proc/loadavg)" > "$sum"
-for k in cold warm; do
+runs="cold warm"
+for ((i = 2; i <= warm; i++)); do runs="$runs warm$i"; done
+for k in $runs; do
     CI=true MESA_SHADER_CACHE_DIR=$cache /usr/bin/time -v make test > /tmp/clean_clone_$n.$k.log 2>&1
     echo "$k rc=$? end $(date +%T) load $(cut -d' ' -f1-3 /proc/loadavg)" >> "$sum"
     grep -E "passed|failed|Elapsed|User time|System time" /tmp/clean_clone_$n.$k.log | sed "s/^/$k: /" >> "$sum"
