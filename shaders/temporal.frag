@@ -40,6 +40,7 @@ uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
+uniform sampler2D u_prev_mom;  // previous moments of d = luma(own sample) - luma(13-tap mean): E[d], E[d^2]
 uniform mat4 u_prev_view;      // previous world -> view
 uniform vec4 u_prev_tan;       // previous view: tan half extents xy, aperture offsets zw (unit depth)
 uniform float u_edge_slack;    // px: how far a neighbour's motion may leave an old texel (edges)
@@ -51,6 +52,11 @@ uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
+// A moving pixel's own-sample weight from its history of d = own - mean (luma): the
+// mean's blur B^2 ~ E[d]^2 - u_noise_k * var(d) / (n - 1) against E[d^2] = B^2 + the
+// noise of d; u_noise_k < 0: off (u_cur_weight alone).
+uniform float u_noise_k;
+uniform float u_noise_gamma;
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -70,6 +76,7 @@ uniform float u_light_caps[LIM_MAX_LIGHT_CHANGES];
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_history;
 layout(location = 2) out vec4 o_geo;
+layout(location = 3) out vec2 o_mom;
 
 float luma(vec3 c) {
     return dot(c, LUMINANCE_REC709);
@@ -131,31 +138,46 @@ SurfacePlane surface_plane(float d, vec3 n) {
 // footprints per px of offset; sky against surface) and is a 5 % depth step or moves
 // against it (motion vectors more than sqrt(u_edge_motion) px apart); `flat_`, no tap
 // of the 13 is off the plane.
-void neighbourhood_stats(ivec2 ip, ivec2 size, float d, SurfacePlane sp, out vec3 m1,
+void neighbourhood_stats(ivec2 ip, ivec2 size, vec4 centre, SurfacePlane sp, out vec3 m1,
                          out vec3 sigma, out bool edge, out bool flat_) {
-    m1 = vec3(0.0);
-    vec3 m2 = vec3(0.0);
-    float wsum = 0.0;
+    // the centre tap (this pixel, `centre`): on its own plane at its own depth
+    float d = centre.a;
+    m1 = centre.rgb;
+    vec3 m2 = centre.rgb * centre.rgb;
+    float wsum = 1.0;
     edge = false;
     flat_ = true;
-    vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
-    for (int i = 0; i < 13; ++i) {
+    int moving = 0;  // 3x3 taps off the plane at this depth: edges if they move against it
+    for (int i = 1; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         vec4 s = texelFetch(u_demod, q, 0);
         float w = abs(s.a - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
         float tol = u_young.z * length(vec2(TAPS[i])) * sp.foot + 1e-4;
         bool on = d > 0.0 ? s.a > 0.0 && abs(dot(sp.nv, pq - sp.p)) <= tol : s.a <= 0.0;
-        if (i < 9) {
+        if (i < 9 && !on) {
             // another surface: off the plane and a depth step, or moving against this
-            // pixel (an object passing; the jitter moves both sides alike)
-            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
-            edge = edge || (!on && (w == 0.0 || dot(dm, dm) > u_edge_motion));
+            // pixel (an object passing; the jitter moves both sides alike: below)
+            edge = edge || w == 0.0;
+            moving |= w == 0.0 ? 0 : 1 << i;
         }
         flat_ = flat_ && on;
         m1 += w * s.rgb;
         m2 += w * s.rgb * s.rgb;
         wsum += w;
+    }
+    // The motion test only for the taps that need it, in a loop: a stamp none of whose
+    // pixels has such a tap (most: flat surfaces, depth steps) fetches no motion.
+    moving = edge ? 0 : moving;
+    while (moving != 0) {
+        int i = findLSB(moving);
+        moving &= moving - 1;
+        ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
+        vec2 dm = texelFetch(u_motion, q, 0).xy - texelFetch(u_motion, ip, 0).xy;
+        if (dot(dm, dm) > u_edge_motion) {
+            edge = true;
+            moving = 0;
+        }
     }
     m1 /= wsum;
     m2 /= wsum;
@@ -168,6 +190,7 @@ struct Reprojection {
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
     float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
+    float still;    // 1: the surface moved by < 0.5 px, 0: by >= 1 px
     vec3 prev_p;    // this surface's point in the previous view space (m)
     vec3 prev_n;    // ... its normal there
 };
@@ -185,6 +208,7 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     r.cur_w = mix(u_cur_weight, 1.0, still);
+    r.still = still;
     r.prev_p = vec3(0.0);
     r.prev_n = vec3(0.0);
     if (d > 0.0) {
@@ -216,6 +240,7 @@ struct Footprint {
     float valid_w;   // sum of the agreeing texels' bilinear weights
     int valid_n;     // agreeing texels (4: Catmull-Rom)
     float edge_run;  // most frames in a row an agreeing texel's history had an edge beside it
+    vec2 dmom;       // moments of d (own sample - neighbourhood mean, luma) x valid_w
 };
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
@@ -293,7 +318,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
             }
         }
     }
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, vec2(0.0));
     for (int k = 0; k < 4; ++k) {
         if (!same[k]) continue;
         vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
@@ -307,6 +332,12 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         fp.valid_n += 1;
         fp.hist_len += w * h.a;
     }
+    // the moments of d: one bilinear fetch (other surfaces' texels included: they only
+    // set how much of its own sample a pixel at an edge blends)
+    // (a loop so that with the weight off -- u_noise_k < 0 -- no stamp fetches)
+    for (int i = 0; i < (u_noise_k >= 0.0 ? 1 : 0); ++i) {
+        fp.dmom = fp.valid_w * textureLod(u_prev_mom, r.pos * u_resolution.zw, 0.0).xy;
+    }
     return fp;
 }
 
@@ -318,7 +349,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
 // that saw this surface last frame (nearest depth, same side) stands in, instead of
 // starting again from one frame's noise. Only such pixels pay for the search.
 Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, vec2(0.0));
     ivec2 c0 = ivec2(floor(r.pos));
     if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
     float g0 = texelFetch(u_prev_geo, c0, 0).x;
@@ -348,7 +379,7 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
         if (err >= best) continue;
         best = err;
         vec4 h = texelFetch(u_history, t, 0);
-        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a));
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a), texelFetch(u_prev_mom, t, 0).xy);
     }
     return fp;
 }
@@ -419,24 +450,40 @@ vec4 young_estimate(ivec2 ip, ivec2 size, float d, SurfacePlane sp, bool flat_, 
 // not one pixel's, so the image flickers less while the camera moves; a still pixel
 // keeps its own samples and converges to its own value). Returns the demodulated
 // result and its history length; tm2: the luma second moment to keep.
-vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2) {
+vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2,
+           out vec2 dm) {
     vec3 result = m1;
     float len = 1.0;
     float lc = luma(cur);
     tm2 = lc * lc;
+    float dl = lc - luma(m1);
+    dm = vec2(dl, dl * dl);
     if (u_reset < 0.5 && fp.valid_n > 0 && fp.valid_w > 1e-4) {
         vec3 h = fp.valid_n == 4 ? history_catmull_rom(r.pos) : fp.bil / fp.valid_w;
         // The box: spatial spread, widened to the pixel's own temporal spread
         // (STB picks lights per tile, so neighbours share a frame's misses and
         // the spatial spread alone underestimates the noise: clipping to it
         // pulled converged history back to one frame's noise).
+        len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
+        dm = mix(fp.dmom / fp.valid_w, dm, 1.0 / len);
+        float cur_w = r.cur_w;
+        float gamma = r.gamma;
+        if (u_noise_k >= 0.0) {
+            // the mean's blur (its squared bias, the noise of E[d] taken out) against
+            // all of d's second moment: exact input -> 1, noise around a flat mean -> 0
+            float var_d = max(dm.y - dm.x * dm.x, 0.0);
+            float b2 = max(dm.x * dm.x - u_noise_k * var_d / max(len - 1.0, 1.0), 0.0);
+            float w = len > 1.5 ? b2 / max(dm.y, 1e-12) : 0.0;
+            cur_w = mix(w, 1.0, r.still);
+            // a noise-free moving pixel's box: u_noise_gamma std devs (<= 0: r.gamma)
+            gamma = u_noise_gamma > 0.0 ? mix(mix(u_gamma.x, u_noise_gamma, w), u_gamma.y, r.still) : r.gamma;
+        }
         float mom2 = fp.mom2 / fp.valid_w;
         float lh = luma(h);
         float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
-        vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
+        vec3 ext = gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
-        len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
-        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, r.cur_w)), 1.0 / len);
+        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, cur_w)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);
     }
     return vec4(result, len);
@@ -452,7 +499,7 @@ void main() {
     vec3 n = oct_decode(enc);
     bool edge, flat_;
     SurfacePlane sp = surface_plane(d, n);
-    neighbourhood_stats(ip, size, d, sp, m1, sigma, edge, flat_);
+    neighbourhood_stats(ip, size, centre, sp, m1, sigma, edge, flat_);
     Reprojection r = reproject(ip, d, n);
     Footprint fp = footprint_history(ip, size, d, n, r);
     if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
@@ -465,7 +512,8 @@ void main() {
     // history is their antialiasing.
     if (fp.edge_run >= u_edge_run.x && flat_) r.max_len = min(r.max_len, u_young.w);
     float tm2;
-    vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
+    vec2 dm;
+    vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2, dm);
     float run = edge && fp.valid_n > 0 && u_reset < 0.5 ? min(fp.edge_run + 1.0, u_edge_run.y) : float(edge);
     o_history = vec4(hist.rgb, hist.a + run / float(LIM_TAA_EDGE_RUN_SCALE));
     // A young history shows less of its own noise: its neighbourhood's quadratic
@@ -479,4 +527,5 @@ void main() {
     vec4 alb = texelFetch(u_albedo, ip, 0);
     o_color = vec4(shown * alb.rgb, alb.a);
     o_geo = vec4(d, enc, tm2);
+    o_mom = dm;
 }

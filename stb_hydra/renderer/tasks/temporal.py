@@ -43,6 +43,9 @@ if TYPE_CHECKING:
 
 HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
+#: Per-pixel moments of d = luma(own sample) - luma(13-tap mean) (demodulated): E[d],
+#: E[d^2], blended 1/n like the history (NOISE_K).
+MOMENTS = ("taa_mom_a", "taa_mom_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
 #: Lighting / albedo + linear depth; albedo + lighting alpha of this frame (written
@@ -75,6 +78,15 @@ CLIP_GAMMA = (3.0, 8.0)
 #: 1.46x, 0: 0.306 / 0.08 / 1.42x. The mean's blur (lighting only: the input is
 #: demodulated; within 2 px) goes once the camera stops.
 CURRENT_WEIGHT_MOVING = 0.0
+#: A moving pixel's own-sample weight from its own noise (< 0: off, CURRENT_WEIGHT_MOVING
+#: alone): w = B^2 / E[d^2] with d = luma(own sample) - luma(13-tap mean) over the
+#: pixel's history (moments E[d], E[d^2], MOMENTS) and the mean's squared blur
+#: B^2 = max(E[d]^2 - NOISE_K var(d) / (n - 1), 0): exact input (d is the blur) -> the
+#: own sample, noise around a flat mean (E[d] ~ 0) -> the mean.
+NOISE_K = -1.0
+#: Clip box half extent (std devs) of a noise-free moving pixel (w = 1 above; mixed by
+#: w with CLIP_GAMMA's moving one); 0: CLIP_GAMMA alone.
+NOISE_GAMMA = 0.0
 #: An old texel that is not this pixel's surface is still kept as "an edge the jitter
 #: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
 #: brings the texel within this many px of the pixel (per axis; equal motion gives
@@ -214,6 +226,7 @@ class TemporalTask(Pass):
         Tex(OUTPUT, "rgba16f"),
         *(Tex(n, "rgba32f") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in GEOMETRY),
+        *(Tex(n, "rg32f") for n in MOMENTS),
     )
 
     def __init__(
@@ -280,9 +293,12 @@ class TemporalTask(Pass):
         src = self._parity
         h_src, h_dst = HISTORY[src], HISTORY[1 - src]
         g_src, g_dst = GEOMETRY[src], GEOMETRY[1 - src]
+        m_src, m_dst = MOMENTS[src], MOMENTS[1 - src]
         tex = bufs.textures
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
+        mom = tex[m_src]
+        mom.filter = (moderngl.LINEAR, moderngl.LINEAR)
         prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag")
         units = (
             ("u_demod", DEMOD),
@@ -291,6 +307,7 @@ class TemporalTask(Pass):
             ("u_motion", "g_motion"),
             ("u_history", h_src),
             ("u_prev_geo", g_src),
+            ("u_prev_mom", m_src),
         )
         for unit, (uniform, name) in enumerate(units):
             tex[name].use(unit)
@@ -315,15 +332,19 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
+        set_uniform(prog, "u_noise_k", NOISE_K)
+        set_uniform(prog, "u_noise_gamma", NOISE_GAMMA)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
         set_uniform(prog, "u_edge_motion", EDGE_MOTION_SQ)
         set_uniform(prog, "u_edge_run", (EDGE_RUN, float(limits.TAA_EDGE_RUN_MAX)))
-        fbo = bufs.framebuffer(f"fb_taa_{1 - src}", [OUTPUT, h_dst, g_dst])
+        targets = [OUTPUT, h_dst, g_dst] + ([m_dst] if NOISE_K >= 0.0 else [])
+        fbo = bufs.framebuffer(f"fb_taa_{1 - src}_{len(targets)}", targets)
         draw_fullscreen(ctx, prog, fbo, bufs.size)
         hist.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        mom.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._prev_view = frame.view
         self.count = 1 if reason else self.count + 1
         self._parity = 1 - src
