@@ -24,6 +24,9 @@
 //    history, current and box alike, so the blend does not depend on the exposure);
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
+//    With u_noise_k >= 0 (temporal.NOISE_K; off by default) also the moments E[d],
+//    E[d^2] of d = own sample - neighbourhood mean (luma), from which a moving pixel
+//    takes the weight of its own sample (exact input: its own, noise: the mean).
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
 // (disocclusion: same_surface, neighbour_surface), the edge-left cap, history_catmull_rom,
 // clip_towards_mean, blend, young_estimate (display only; issue 31 "(taa8)"). Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
@@ -166,17 +169,15 @@ void neighbourhood_stats(ivec2 ip, ivec2 size, vec4 centre, SurfacePlane sp, out
         m2 += w * s.rgb * s.rgb;
         wsum += w;
     }
-    // The motion test only for the taps that need it, in a loop: a stamp none of whose
-    // pixels has such a tap (most: flat surfaces, depth steps) fetches no motion.
-    moving = edge ? 0 : moving;
-    while (moving != 0) {
-        int i = findLSB(moving);
-        moving &= moving - 1;
-        ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
-        vec2 dm = texelFetch(u_motion, q, 0).xy - texelFetch(u_motion, ip, 0).xy;
-        if (dot(dm, dm) > u_edge_motion) {
-            edge = true;
-            moving = 0;
+    // The motion test only where a tap needs it, in a loop: a stamp none of whose pixels
+    // has such a tap (most: flat surfaces, depth steps) fetches no motion. (Taps picked
+    // one by one -- a dynamic index into TAPS -- cost more than all 8 fetches.)
+    for (int k = 0; k < (edge || moving == 0 ? 0 : 1); ++k) {
+        vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
+        for (int i = 1; i < 9; ++i) {
+            ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
+            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
+            edge = edge || ((moving & (1 << i)) != 0 && dot(dm, dm) > u_edge_motion);
         }
     }
     m1 /= wsum;
@@ -468,7 +469,7 @@ vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out floa
         dm = mix(fp.dmom / fp.valid_w, dm, 1.0 / len);
         float cur_w = r.cur_w;
         float gamma = r.gamma;
-        if (u_noise_k >= 0.0) {
+        for (int k = 0; k < (u_noise_k >= 0.0 ? 1 : 0); ++k) {  // (a loop: off, no stamp runs it)
             // the mean's blur (its squared bias, the noise of E[d] taken out) against
             // all of d's second moment: exact input -> 1, noise around a flat mean -> 0
             float var_d = max(dm.y - dm.x * dm.x, 0.0);

@@ -44,7 +44,7 @@ if TYPE_CHECKING:
 HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
 #: Per-pixel moments of d = luma(own sample) - luma(13-tap mean) (demodulated): E[d],
-#: E[d^2], blended 1/n like the history (NOISE_K).
+#: E[d^2], blended 1/n like the history (NOISE_K; attached only while it is on).
 MOMENTS = ("taa_mom_a", "taa_mom_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
@@ -82,10 +82,17 @@ CURRENT_WEIGHT_MOVING = 0.0
 #: alone): w = B^2 / E[d^2] with d = luma(own sample) - luma(13-tap mean) over the
 #: pixel's history (moments E[d], E[d^2], MOMENTS) and the mean's squared blur
 #: B^2 = max(E[d]^2 - NOISE_K var(d) / (n - 1), 0): exact input (d is the blur) -> the
-#: own sample, noise around a flat mean (E[d] ~ 0) -> the mean.
+#: own sample, noise around a flat mean (E[d] ~ 0) -> the mean. Courtyard orbit of issue
+#: 14 (320x180, 60 frames, medians of frames 8-59; docs/STB_NOTES.md "(taa9)"), HDR-FLIP
+#: off -> NOISE_K 1: exact lighting through taa 0.1045 -> 0.1007, the opt-in reuse
+#: configuration 0.1238 -> 0.1231 (NOISE_K 4: 0.1234), STB defaults 0.1721 -> 0.1719
+#: (instability 1.28x both); 256-light chess (24 frames): opt-in 0.2287 -> 0.2276, exact
+#: 0.2118 -> 0.2075. Off: the opt-in configuration gains 0.6 % for an extra target and
+#: fetch in a pass already over its cost budget.
 NOISE_K = -1.0
 #: Clip box half extent (std devs) of a noise-free moving pixel (w = 1 above; mixed by
-#: w with CLIP_GAMMA's moving one); 0: CLIP_GAMMA alone.
+#: w with CLIP_GAMMA's moving one); 0: CLIP_GAMMA alone. 1 with NOISE_K 1: exact
+#: lighting 0.1006, opt-in 0.1231, STB defaults 0.1719 (as without it).
 NOISE_GAMMA = 0.0
 #: An old texel that is not this pixel's surface is still kept as "an edge the jitter
 #: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
