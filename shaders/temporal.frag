@@ -24,9 +24,6 @@
 //    history, current and box alike, so the blend does not depend on the exposure);
 //  * out: remodulated colour (display), demodulated history + n, depth + normal +
 //    the second moment of demodulated luminance (the pixel's temporal spread).
-//    With u_noise_k >= 0 (temporal.NOISE_K; off by default) also the moments E[d],
-//    E[d^2] of d = own sample - neighbourhood mean (luma), from which a moving pixel
-//    takes the weight of its own sample (exact input: its own, noise: the mean).
 // Steps, in main()'s order: neighbourhood_stats, reproject, footprint_history
 // (disocclusion: same_surface, neighbour_surface), the edge-left cap, history_catmull_rom,
 // clip_towards_mean, blend, young_estimate (display only; issue 31 "(taa8)"). Cost (llvmpipe, docs/PERFORMANCE.md): the neighbourhood
@@ -43,7 +40,6 @@ uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
-uniform sampler2D u_prev_mom;  // previous moments of d = luma(own sample) - luma(13-tap mean): E[d], E[d^2]
 uniform mat4 u_prev_view;      // previous world -> view
 uniform vec4 u_prev_tan;       // previous view: tan half extents xy, aperture offsets zw (unit depth)
 uniform float u_edge_slack;    // px: how far a neighbour's motion may leave an old texel (edges)
@@ -55,11 +51,6 @@ uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
-// A moving pixel's own-sample weight from its history of d = own - mean (luma): the
-// mean's blur B^2 ~ E[d]^2 - u_noise_k * var(d) / (n - 1) against E[d^2] = B^2 + the
-// noise of d; u_noise_k < 0: off (u_cur_weight alone).
-uniform float u_noise_k;
-uniform float u_noise_gamma;
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -79,7 +70,6 @@ uniform float u_light_caps[LIM_MAX_LIGHT_CHANGES];
 layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_history;
 layout(location = 2) out vec4 o_geo;
-layout(location = 3) out vec2 o_mom;
 
 float luma(vec3 c) {
     return dot(c, LUMINANCE_REC709);
@@ -170,8 +160,8 @@ void neighbourhood_stats(ivec2 ip, ivec2 size, vec4 centre, SurfacePlane sp, out
         wsum += w;
     }
     // The motion test only where a tap needs it, in a loop: a stamp none of whose pixels
-    // has such a tap (most: flat surfaces, depth steps) fetches no motion. (Taps picked
-    // one by one -- a dynamic index into TAPS -- cost more than all 8 fetches.)
+    // has such a tap (most: flat surfaces, depth steps) fetches no motion (an `if` would
+    // run its fetches in every stamp, masked: docs/STB_NOTES.md "(reuse5)").
     for (int k = 0; k < (edge || moving == 0 ? 0 : 1); ++k) {
         vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
         for (int i = 1; i < 9; ++i) {
@@ -191,7 +181,6 @@ struct Reprojection {
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
     float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
-    float still;    // 1: the surface moved by < 0.5 px, 0: by >= 1 px
     vec3 prev_p;    // this surface's point in the previous view space (m)
     vec3 prev_n;    // ... its normal there
 };
@@ -209,7 +198,6 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     r.cur_w = mix(u_cur_weight, 1.0, still);
-    r.still = still;
     r.prev_p = vec3(0.0);
     r.prev_n = vec3(0.0);
     if (d > 0.0) {
@@ -241,7 +229,6 @@ struct Footprint {
     float valid_w;   // sum of the agreeing texels' bilinear weights
     int valid_n;     // agreeing texels (4: Catmull-Rom)
     float edge_run;  // most frames in a row an agreeing texel's history had an edge beside it
-    vec2 dmom;       // moments of d (own sample - neighbourhood mean, luma) x valid_w
 };
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
@@ -319,7 +306,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
             }
         }
     }
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, vec2(0.0));
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     for (int k = 0; k < 4; ++k) {
         if (!same[k]) continue;
         vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
@@ -333,12 +320,6 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         fp.valid_n += 1;
         fp.hist_len += w * h.a;
     }
-    // the moments of d: one bilinear fetch (other surfaces' texels included: they only
-    // set how much of its own sample a pixel at an edge blends)
-    // (a loop so that with the weight off -- u_noise_k < 0 -- no stamp fetches)
-    for (int i = 0; i < (u_noise_k >= 0.0 ? 1 : 0); ++i) {
-        fp.dmom = fp.valid_w * textureLod(u_prev_mom, r.pos * u_resolution.zw, 0.0).xy;
-    }
     return fp;
 }
 
@@ -350,7 +331,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
 // that saw this surface last frame (nearest depth, same side) stands in, instead of
 // starting again from one frame's noise. Only such pixels pay for the search.
 Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, vec2(0.0));
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     ivec2 c0 = ivec2(floor(r.pos));
     if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
     float g0 = texelFetch(u_prev_geo, c0, 0).x;
@@ -380,7 +361,7 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
         if (err >= best) continue;
         best = err;
         vec4 h = texelFetch(u_history, t, 0);
-        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a), texelFetch(u_prev_mom, t, 0).xy);
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a));
     }
     return fp;
 }
@@ -451,40 +432,24 @@ vec4 young_estimate(ivec2 ip, ivec2 size, float d, SurfacePlane sp, bool flat_, 
 // not one pixel's, so the image flickers less while the camera moves; a still pixel
 // keeps its own samples and converges to its own value). Returns the demodulated
 // result and its history length; tm2: the luma second moment to keep.
-vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2,
-           out vec2 dm) {
+vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out float tm2) {
     vec3 result = m1;
     float len = 1.0;
     float lc = luma(cur);
     tm2 = lc * lc;
-    float dl = lc - luma(m1);
-    dm = vec2(dl, dl * dl);
     if (u_reset < 0.5 && fp.valid_n > 0 && fp.valid_w > 1e-4) {
         vec3 h = fp.valid_n == 4 ? history_catmull_rom(r.pos) : fp.bil / fp.valid_w;
         // The box: spatial spread, widened to the pixel's own temporal spread
         // (STB picks lights per tile, so neighbours share a frame's misses and
         // the spatial spread alone underestimates the noise: clipping to it
         // pulled converged history back to one frame's noise).
-        len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
-        dm = mix(fp.dmom / fp.valid_w, dm, 1.0 / len);
-        float cur_w = r.cur_w;
-        float gamma = r.gamma;
-        for (int k = 0; k < (u_noise_k >= 0.0 ? 1 : 0); ++k) {  // (a loop: off, no stamp runs it)
-            // the mean's blur (its squared bias, the noise of E[d] taken out) against
-            // all of d's second moment: exact input -> 1, noise around a flat mean -> 0
-            float var_d = max(dm.y - dm.x * dm.x, 0.0);
-            float b2 = max(dm.x * dm.x - u_noise_k * var_d / max(len - 1.0, 1.0), 0.0);
-            float w = len > 1.5 ? b2 / max(dm.y, 1e-12) : 0.0;
-            cur_w = mix(w, 1.0, r.still);
-            // a noise-free moving pixel's box: u_noise_gamma std devs (<= 0: r.gamma)
-            gamma = u_noise_gamma > 0.0 ? mix(mix(u_gamma.x, u_noise_gamma, w), u_gamma.y, r.still) : r.gamma;
-        }
         float mom2 = fp.mom2 / fp.valid_w;
         float lh = luma(h);
         float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
-        vec3 ext = gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
+        vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
-        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, cur_w)), 1.0 / len);
+        len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
+        result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, r.cur_w)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);
     }
     return vec4(result, len);
@@ -513,8 +478,7 @@ void main() {
     // history is their antialiasing.
     if (fp.edge_run >= u_edge_run.x && flat_) r.max_len = min(r.max_len, u_young.w);
     float tm2;
-    vec2 dm;
-    vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2, dm);
+    vec4 hist = blend(centre.rgb, m1, sigma, r, fp, tm2);
     float run = edge && fp.valid_n > 0 && u_reset < 0.5 ? min(fp.edge_run + 1.0, u_edge_run.y) : float(edge);
     o_history = vec4(hist.rgb, hist.a + run / float(LIM_TAA_EDGE_RUN_SCALE));
     // A young history shows less of its own noise: its neighbourhood's quadratic
@@ -528,5 +492,4 @@ void main() {
     vec4 alb = texelFetch(u_albedo, ip, 0);
     o_color = vec4(shown * alb.rgb, alb.a);
     o_geo = vec4(d, enc, tm2);
-    o_mom = dm;
 }

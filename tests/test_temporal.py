@@ -76,39 +76,6 @@ def test_orbit_taa_below_raw_stb(repo):
     assert inst <= 2.5, inst
 
 
-def _noise_weight_figures(repo, noise_k: float, frames: int, w: int, h: int, skip: int):
-    """(median HDR-FLIP of exact lighting through taa, STB's taa instability ratio) on
-    the courtyard orbit from frame ``skip`` on, with ``temporal.NOISE_K`` = noise_k
-    (< 0: a moving pixel blends the neighbourhood mean). Module level: optimised child."""
-    from stb_hydra.renderer.tasks import temporal
-
-    saved = temporal.NOISE_K
-    temporal.NOISE_K = noise_k
-    try:
-        stage = _orbit(repo, frames)
-        times = [1 + i for i in range(frames)]
-        ref, _ = _sequence(stage, frames - skip, "reference", "off", w, h, times[skip:])
-        exact, _ = _sequence(stage, frames, "reference", "taa", w, h, times)
-        stb, _ = _sequence(stage, frames, "stb", "taa", w, h, times)
-    finally:
-        temporal.NOISE_K = saved
-    flip = float(np.median(per_frame_flip(exact[skip:], ref)))
-    return flip, instability_ratio(stb[skip:], ref)
-
-
-@pytest.mark.slow
-def test_moving_pixel_weight_follows_the_noise(repo):
-    """A moving pixel blends its own sample by how much of d = own - neighbourhood mean
-    is the mean's blur rather than noise (``temporal.NOISE_K``): with exact lighting
-    (no noise) the orbit comes out sharper than with the plain mean blend (taa9: 0.1007
-    against 0.1045 at 320x180), with STB's noisy input it flickers no more (1.28x both).
-    Off by default (docs/STB_NOTES.md "(taa9)"): here it is turned on (NOISE_K = 1)."""
-    on = optimised.call(_noise_weight_figures, repo, 1.0, 16, 160, 90, 6)
-    off = optimised.call(_noise_weight_figures, repo, -1.0, 16, 160, 90, 6)
-    assert on[0] < 0.98 * off[0], (on, off)
-    assert on[1] <= 1.03 * off[1], (on, off)
-
-
 LIGHTS = [  # (x, y, z, intensity): sphere lights over the ground
     (-4.0, 1.5, -2.0, 8000.0),
     (3.0, 2.0, -3.0, 6000.0),

@@ -43,9 +43,6 @@ if TYPE_CHECKING:
 
 HISTORY = ("taa_hist_a", "taa_hist_b")
 GEOMETRY = ("taa_geo_a", "taa_geo_b")
-#: Per-pixel moments of d = luma(own sample) - luma(13-tap mean) (demodulated): E[d],
-#: E[d^2], blended 1/n like the history (NOISE_K; attached only while it is on).
-MOMENTS = ("taa_mom_a", "taa_mom_b")
 #: The display colour of a taa frame (``SceneColor.buffer``).
 OUTPUT = "taa_color"
 #: Lighting / albedo + linear depth; albedo + lighting alpha of this frame (written
@@ -78,22 +75,6 @@ CLIP_GAMMA = (3.0, 8.0)
 #: 1.46x, 0: 0.306 / 0.08 / 1.42x. The mean's blur (lighting only: the input is
 #: demodulated; within 2 px) goes once the camera stops.
 CURRENT_WEIGHT_MOVING = 0.0
-#: A moving pixel's own-sample weight from its own noise (< 0: off, CURRENT_WEIGHT_MOVING
-#: alone): w = B^2 / E[d^2] with d = luma(own sample) - luma(13-tap mean) over the
-#: pixel's history (moments E[d], E[d^2], MOMENTS) and the mean's squared blur
-#: B^2 = max(E[d]^2 - NOISE_K var(d) / (n - 1), 0): exact input (d is the blur) -> the
-#: own sample, noise around a flat mean (E[d] ~ 0) -> the mean. Courtyard orbit of issue
-#: 14 (320x180, 60 frames, medians of frames 8-59; docs/STB_NOTES.md "(taa9)"), HDR-FLIP
-#: off -> NOISE_K 1: exact lighting through taa 0.1045 -> 0.1007, the opt-in reuse
-#: configuration 0.1238 -> 0.1231 (NOISE_K 4: 0.1234), STB defaults 0.1721 -> 0.1719
-#: (instability 1.28x both); 256-light chess (24 frames): opt-in 0.2287 -> 0.2276, exact
-#: 0.2118 -> 0.2075. Off: the opt-in configuration gains 0.6 % for an extra target and
-#: fetch in a pass already over its cost budget.
-NOISE_K = -1.0
-#: Clip box half extent (std devs) of a noise-free moving pixel (w = 1 above; mixed by
-#: w with CLIP_GAMMA's moving one); 0: CLIP_GAMMA alone. 1 with NOISE_K 1: exact
-#: lighting 0.1006, opt-in 0.1231, STB defaults 0.1719 (as without it).
-NOISE_GAMMA = 0.0
 #: An old texel that is not this pixel's surface is still kept as "an edge the jitter
 #: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
 #: brings the texel within this many px of the pixel (per axis; equal motion gives
@@ -233,7 +214,6 @@ class TemporalTask(Pass):
         Tex(OUTPUT, "rgba16f"),
         *(Tex(n, "rgba32f") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in GEOMETRY),
-        *(Tex(n, "rg32f") for n in MOMENTS),
     )
 
     def __init__(
@@ -300,12 +280,9 @@ class TemporalTask(Pass):
         src = self._parity
         h_src, h_dst = HISTORY[src], HISTORY[1 - src]
         g_src, g_dst = GEOMETRY[src], GEOMETRY[1 - src]
-        m_src, m_dst = MOMENTS[src], MOMENTS[1 - src]
         tex = bufs.textures
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
-        mom = tex[m_src]
-        mom.filter = (moderngl.LINEAR, moderngl.LINEAR)
         prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag")
         units = (
             ("u_demod", DEMOD),
@@ -314,7 +291,6 @@ class TemporalTask(Pass):
             ("u_motion", "g_motion"),
             ("u_history", h_src),
             ("u_prev_geo", g_src),
-            ("u_prev_mom", m_src),
         )
         for unit, (uniform, name) in enumerate(units):
             tex[name].use(unit)
@@ -339,19 +315,15 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
-        set_uniform(prog, "u_noise_k", NOISE_K)
-        set_uniform(prog, "u_noise_gamma", NOISE_GAMMA)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
         set_uniform(prog, "u_edge_motion", EDGE_MOTION_SQ)
         set_uniform(prog, "u_edge_run", (EDGE_RUN, float(limits.TAA_EDGE_RUN_MAX)))
-        targets = [OUTPUT, h_dst, g_dst] + ([m_dst] if NOISE_K >= 0.0 else [])
-        fbo = bufs.framebuffer(f"fb_taa_{1 - src}_{len(targets)}", targets)
+        fbo = bufs.framebuffer(f"fb_taa_{1 - src}", [OUTPUT, h_dst, g_dst])
         draw_fullscreen(ctx, prog, fbo, bufs.size)
         hist.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        mom.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self._prev_view = frame.view
         self.count = 1 if reason else self.count + 1
         self._parity = 1 - src
