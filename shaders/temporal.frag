@@ -131,44 +131,31 @@ SurfacePlane surface_plane(float d, vec3 n) {
 // footprints per px of offset; sky against surface) and is a 5 % depth step or moves
 // against it (motion vectors more than sqrt(u_edge_motion) px apart); `flat_`, no tap
 // of the 13 is off the plane.
-void neighbourhood_stats(ivec2 ip, ivec2 size, vec4 centre, SurfacePlane sp, out vec3 m1,
+void neighbourhood_stats(ivec2 ip, ivec2 size, float d, SurfacePlane sp, out vec3 m1,
                          out vec3 sigma, out bool edge, out bool flat_) {
-    // the centre tap (this pixel, `centre`): on its own plane at its own depth
-    float d = centre.a;
-    m1 = centre.rgb;
-    vec3 m2 = centre.rgb * centre.rgb;
-    float wsum = 1.0;
+    m1 = vec3(0.0);
+    vec3 m2 = vec3(0.0);
+    float wsum = 0.0;
     edge = false;
     flat_ = true;
-    int moving = 0;  // 3x3 taps off the plane at this depth: edges if they move against it
-    for (int i = 1; i < 13; ++i) {
+    vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
+    for (int i = 0; i < 13; ++i) {
         ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
         vec4 s = texelFetch(u_demod, q, 0);
         float w = abs(s.a - d) <= 0.05 * max(d, 1e-4) + 1e-6 ? 1.0 : 0.0;
         vec3 pq = view_pos_from_depth(vec2(q) + 0.5, s.a);
         float tol = u_young.z * length(vec2(TAPS[i])) * sp.foot + 1e-4;
         bool on = d > 0.0 ? s.a > 0.0 && abs(dot(sp.nv, pq - sp.p)) <= tol : s.a <= 0.0;
-        if (i < 9 && !on) {
+        if (i < 9) {
             // another surface: off the plane and a depth step, or moving against this
-            // pixel (an object passing; the jitter moves both sides alike: below)
-            edge = edge || w == 0.0;
-            moving |= w == 0.0 ? 0 : 1 << i;
+            // pixel (an object passing; the jitter moves both sides alike)
+            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
+            edge = edge || (!on && (w == 0.0 || dot(dm, dm) > u_edge_motion));
         }
         flat_ = flat_ && on;
         m1 += w * s.rgb;
         m2 += w * s.rgb * s.rgb;
         wsum += w;
-    }
-    // The motion test only where a tap needs it, in a loop: a stamp none of whose pixels
-    // has such a tap (most: flat surfaces, depth steps) fetches no motion (an `if` would
-    // run its fetches in every stamp, masked: docs/STB_NOTES.md "(reuse5)").
-    for (int k = 0; k < (edge || moving == 0 ? 0 : 1); ++k) {
-        vec2 mv0 = texelFetch(u_motion, ip, 0).xy;
-        for (int i = 1; i < 9; ++i) {
-            ivec2 q = clamp(ip + TAPS[i], ivec2(0), size - 1);
-            vec2 dm = texelFetch(u_motion, q, 0).xy - mv0;
-            edge = edge || ((moving & (1 << i)) != 0 && dot(dm, dm) > u_edge_motion);
-        }
     }
     m1 /= wsum;
     m2 /= wsum;
@@ -465,7 +452,7 @@ void main() {
     vec3 n = oct_decode(enc);
     bool edge, flat_;
     SurfacePlane sp = surface_plane(d, n);
-    neighbourhood_stats(ip, size, centre, sp, m1, sigma, edge, flat_);
+    neighbourhood_stats(ip, size, d, sp, m1, sigma, edge, flat_);
     Reprojection r = reproject(ip, d, n);
     Footprint fp = footprint_history(ip, size, d, n, r);
     if (fp.valid_n == 0 && u_reset < 0.5) fp = borrow_history(ip, size, d, n, r);
