@@ -28,6 +28,7 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+import optimised_child
 from pxr import Usd
 
 import stb_hydra
@@ -40,17 +41,6 @@ child_cpu_s = 0.0
 
 def _use_child() -> bool:
     return os.environ.get("GALLIVM_PERF") == "nopt" and os.environ.get("STB_TEST_OPT_CHILD") != "0"
-
-
-def _child_init() -> None:
-    # Before the child's first GL context: llvmpipe reads the flag when it starts.
-    # Empty = LLVM's default optimisation (conftest keeps an existing value).
-    os.environ["GALLIVM_PERF"] = ""
-    # USD serially, as in the xdist workers (tests/conftest.py): the other worker has
-    # the other core, and TBB's idle threads spin.
-    from pxr import Work
-
-    Work.SetConcurrencyLimit(1)
 
 
 def _timed(fn, args: tuple, kwargs: dict):
@@ -74,7 +64,7 @@ def _child() -> ProcessPoolExecutor:
         _pool = ProcessPoolExecutor(
             max_workers=1,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=_child_init,
+            initializer=optimised_child.init,  # before the first import of pxr
         )
         atexit.register(_pool.shutdown)
     return _pool
