@@ -81,15 +81,14 @@ class RenderWorker:
         if threads:
             # llvmpipe's rasteriser threads: this worker's CPUs (before the context).
             os.environ.setdefault("LP_NUM_THREADS", str(threads))
-        from pxr import Work
-
         import stb_hydra  # noqa: F401  (schema registration before any stage)
+        from stb_hydra.usd_threads import raise_limit
 
         from ..apps import render_steps as r
         from ..apps.common import open_stage
 
-        if threads:
-            Work.SetConcurrencyLimit(int(threads))
+        if threads:  # never lowered once TBB runs: stb_hydra.usd_threads
+            raise_limit(int(threads))
         args = argparse.Namespace(**job["args"])
         self.args = args
         self.rep = Reporter("stb render", quiet=True).__enter__()

@@ -33,11 +33,10 @@ def _setup() -> None:
     global _READY
     if _READY:
         return
-    from pxr import Work
-
     import stb_hydra  # noqa: F401  (schema before any stage)
 
-    Work.SetConcurrencyLimit(1)
+    # USD's threads are not lowered to 1 here: TBB's started threads would spin for the
+    # worker's life (stb_hydra.usd_threads); the parallelism is still the workers.
     from ..validate import register_validators
 
     register_validators()

@@ -8,8 +8,9 @@ mid-asset (segfault, abort, OOM kill) or runs past the per-asset timeout is
 reported as a ``crash`` finding for that asset -- with the exit signal and the tail
 of the worker's stderr (USD diagnostics go there) -- and replaced; the run goes on.
 Exceptions inside an asset (Tf errors included) never kill a worker: they become
-``crash`` findings in the worker. Each worker runs USD single-threaded
-(``Work.SetConcurrencyLimit(1)``): the parallelism is the processes.
+``crash`` findings in the worker. The parallelism is the processes; a worker keeps
+USD's default thread count (lowering it after ``import stb_hydra`` would leave TBB's
+threads spinning: :mod:`stb_hydra.usd_threads`).
 """
 
 from __future__ import annotations
@@ -55,11 +56,10 @@ def _worker_main(
     os.dup2(fd, 2)  # C++ diagnostics and Python tracebacks of this worker
     os.close(fd)
     _limit_memory(limits.VALIDATE_WORKER_MAX_BYTES)
-    from pxr import Work
-
     import stb_hydra  # noqa: F401  (schema before any stage)
 
-    Work.SetConcurrencyLimit(1)
+    # Not lowered to one thread: TBB's threads, started by the import above, would spin
+    # in sched_yield for the worker's life (stb_hydra.usd_threads).
     from . import register_validators
     from .runner import Selection, validate_in_process
 
