@@ -27,18 +27,12 @@ _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
 # threads spin at their barriers while the other worker wants the core: on test_tradeoff
 # and test_exposure_invariance under -n 2, process CPU 67-76 s -> 34 s and wall 92-104 s
 # -> 54 s (docs/TESTING.md, "OpenMP threads"). HDR-FLIP values do not depend on it.
-# And for USD's own threads (TBB): one worker's USD runs serially. In a warm run a
-# worker's TBB thread was found spinning in sched_yield for 200 s of CPU (mostly sys)
-# after its tests had finished, while the other worker wanted the core
-# (docs/TESTING.md, "USD's threads in the workers"). Set before anything opens a stage,
-# so TBB starts no worker thread. (Not PXR_WORK_THREAD_LIMIT: an overridden Tf setting
-# prints a banner on stderr, which the CLI subprocesses would inherit.)
+# USD's own threads (TBB) are left at their default: a limit set here measured worse in
+# whole warm runs, and lowered after `import stb_hydra` it makes TBB's threads spin
+# (stb_hydra/usd_threads.py; docs/TESTING.md, "USD's threads in the workers").
 if _workers >= 2 and _workers >= (os.cpu_count() or 1):
     os.environ.setdefault("LP_NUM_THREADS", "0")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from pxr import Work
-
-    Work.SetConcurrencyLimit(1)
 
 import stb_hydra  # noqa: E402, F401  (registers the codeless USD schema before any stage opens)
 
