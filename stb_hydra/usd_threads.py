@@ -6,8 +6,8 @@ in ``sched_yield`` for the rest of the process (measured: an idle process lowere
 after ``import stb_hydra`` burnt 8.0 s of CPU in 8 s, 6.7 s of it sys; set before the
 import: none). So code inside this package never lowers the limit: :func:`raise_limit`
 only ever raises it. A process that wants fewer threads sets the limit itself before
-it imports stb_hydra (``from pxr import Work; Work.SetConcurrencyLimit(n)``), as the
-test workers do (tests/conftest.py)."""
+it imports stb_hydra (``from pxr import Work; Work.SetConcurrencyLimit(n)``); the
+test processes leave the default (docs/TESTING.md, "USD's threads in the workers")."""
 
 from __future__ import annotations
 

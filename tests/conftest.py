@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import stb_hydra  # noqa: F401  (registers the codeless USD schema before any stage opens)
+
 # llvmpipe compiles the suite's shader variants with LLVM's optimisation passes off:
 # ~2.5x faster compiles (most of a cold run), ~1.3x slower execution, the same images
 # (tests/test_shader_optimisation.py renders with them on and compares). Set before
@@ -33,8 +35,6 @@ _workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
 if _workers >= 2 and _workers >= (os.cpu_count() or 1):
     os.environ.setdefault("LP_NUM_THREADS", "0")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-
-import stb_hydra  # noqa: E402, F401  (registers the codeless USD schema before any stage opens)
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("STB_SHARED", REPO.parent / "shared")).resolve()

@@ -28,7 +28,6 @@ import os
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
-import optimised_child
 from pxr import Usd
 
 import stb_hydra
@@ -41,6 +40,12 @@ child_cpu_s = 0.0
 
 def _use_child() -> bool:
     return os.environ.get("GALLIVM_PERF") == "nopt" and os.environ.get("STB_TEST_OPT_CHILD") != "0"
+
+
+def _child_init() -> None:
+    # Before the child's first GL context: llvmpipe reads the flag when it starts.
+    # Empty = LLVM's default optimisation (conftest keeps an existing value).
+    os.environ["GALLIVM_PERF"] = ""
 
 
 def _timed(fn, args: tuple, kwargs: dict):
@@ -64,7 +69,7 @@ def _child() -> ProcessPoolExecutor:
         _pool = ProcessPoolExecutor(
             max_workers=1,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=optimised_child.init,  # before the first import of pxr
+            initializer=_child_init,
         )
         atexit.register(_pool.shutdown)
     return _pool
