@@ -4,6 +4,9 @@
 # made), each under /usr/bin/time -v; WARM warm runs in all (default 1; the issue asks
 # for three). Logs and a summary go to /tmp/clean_clone_N.*.
 #   tools/clean_clone_test.sh N [WARM]   # N: a run number (the clone is ../clean_clone_N)
+# With CPU_LOG=1 each run also writes tests/conftest.py's per-test CPU log to
+# /tmp/clean_clone_N.RUN.tsv (compare runs with tools/test_timeline.py); the summary
+# records the Mesa cache's size after each run.
 set -u
 n=${1:?run number}
 warm=${2:-1}
@@ -16,8 +19,10 @@ echo "commit $(git rev-parse --short HEAD) start $(date +%T) load $(cut -d' ' -f
 runs="cold warm"
 for ((i = 2; i <= warm; i++)); do runs="$runs warm$i"; done
 for k in $runs; do
-    CI=true MESA_SHADER_CACHE_DIR=$cache /usr/bin/time -v make test > /tmp/clean_clone_$n.$k.log 2>&1
-    echo "$k rc=$? end $(date +%T) load $(cut -d' ' -f1-3 /proc/loadavg)" >> "$sum"
+    log=
+    [ "${CPU_LOG:-0}" = 1 ] && log=/tmp/clean_clone_$n.$k.tsv && rm -f "$log"
+    STB_TEST_CPU_LOG=$log CI=true MESA_SHADER_CACHE_DIR=$cache /usr/bin/time -v make test > /tmp/clean_clone_$n.$k.log 2>&1
+    echo "$k rc=$? end $(date +%T) load $(cut -d' ' -f1-3 /proc/loadavg) mesa cache $(du -sk "$cache" | cut -f1) KiB $(find "$cache" -type f | wc -l) files" >> "$sum"
     grep -E "passed|failed|Elapsed|User time|System time" /tmp/clean_clone_$n.$k.log | sed "s/^/$k: /" >> "$sum"
 done
 cat "$sum"
