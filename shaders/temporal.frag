@@ -51,8 +51,6 @@ uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
-uniform float u_lent_spread;   // a moving pixel's history lent across an edge: weight of its temporal spread (0-1)
-uniform float u_lent_motion;   // px^2: ... only where the lending neighbour moves against the pixel by more
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -170,7 +168,6 @@ struct Reprojection {
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
     float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
-    float lent;     // weight of a lent history's temporal spread in the box and the moment kept
     vec3 prev_p;    // this surface's point in the previous view space (m)
     vec3 prev_n;    // ... its normal there
 };
@@ -188,7 +185,6 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     r.cur_w = mix(u_cur_weight, 1.0, still);
-    r.lent = mix(u_lent_spread, 1.0, still);
     r.prev_p = vec3(0.0);
     r.prev_n = vec3(0.0);
     if (d > 0.0) {
@@ -220,7 +216,6 @@ struct Footprint {
     float valid_w;   // sum of the agreeing texels' bilinear weights
     int valid_n;     // agreeing texels (4: Catmull-Rom)
     float edge_run;  // most frames in a row an agreeing texel's history had an edge beside it
-    bool lent;       // some of it is a neighbour's surface's history (an edge the jitter crosses)
 };
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
@@ -275,7 +270,6 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
     bool inside[4];
     bool same[4];
     bool open = false;  // some texel may still be a neighbour's surface
-    bool lent = false;
     for (int k = 0; k < 4; ++k) {
         ivec2 t = base + ivec2(k & 1, k >> 1);
         inside[k] = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, size));
@@ -295,13 +289,11 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
             if (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0) {
                 vec2 texel = vec2(base + ivec2(k & 1, k >> 1)) + 0.5;
                 same[k] = moves_beside(texel, mvj) && neighbour_surface(g[k], gn[k], dj, nj, shift);
-                vec2 rel = mvj - (gl_FragCoord.xy - r.pos);
-                lent = lent || (same[k] && dot(rel, rel) > u_lent_motion);
                 open = open || !same[k];
             }
         }
     }
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, lent);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     for (int k = 0; k < 4; ++k) {
         if (!same[k]) continue;
         vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
@@ -326,21 +318,17 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
 // that saw this surface last frame (nearest depth, same side) stands in, instead of
 // starting again from one frame's noise. Only such pixels pay for the search.
 Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, true);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
     ivec2 c0 = ivec2(floor(r.pos));
     if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
     float g0 = texelFetch(u_prev_geo, c0, 0).x;
     float shift = r.prev_d - d;
     bool edge = false;
-    bool lent = false;  // the neighbour that shows the old texel's surface moves against the pixel
     for (int j = 1; j < 9 && !edge; ++j) {
         ivec2 q = clamp(ip + TAPS[j], ivec2(0), size - 1);
         float dj = texelFetch(u_demod, q, 0).a;
         edge = g0 <= 0.0 ? dj <= 0.0 : dj > 0.0 && abs(g0 - (dj + shift)) <= 0.05 * g0 + 1e-4;
-        vec2 mvq = texelFetch(u_motion, q, 0).xy - u_jitter;
-        edge = edge && moves_beside(vec2(c0) + 0.5, mvq);
-        vec2 rel = mvq - (gl_FragCoord.xy - r.pos);
-        lent = dot(rel, rel) > u_lent_motion;
+        edge = edge && moves_beside(vec2(c0) + 0.5, texelFetch(u_motion, q, 0).xy - u_jitter);
     }
     if (!edge) return fp;
     float best = 1e30;
@@ -360,7 +348,7 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
         if (err >= best) continue;
         best = err;
         vec4 h = texelFetch(u_history, t, 0);
-        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a), lent);
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a));
     }
     return fp;
 }
@@ -444,15 +432,9 @@ vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out floa
         // pulled converged history back to one frame's noise).
         float mom2 = fp.mom2 / fp.valid_w;
         float lh = luma(h);
-        // A history lent by a neighbour's surface (an edge the jitter crosses; a
-        // disocclusion beside a moving silhouette looks the same): its spread is the
-        // neighbour's (and that between the two surfaces), not this surface's; a
-        // moving pixel takes r.lent of it, in the box and in the moment kept.
-        float var_t = max(mom2 - lh * lh, 0.0) * (fp.lent ? r.lent : 1.0);
-        float sigma_t = sqrt(var_t);
+        float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
         vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
-        if (fp.lent && r.lent < 1.0) mom2 = luma(h) * luma(h) + var_t;
         len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
         result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, r.cur_w)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);

@@ -75,12 +75,6 @@ CLIP_GAMMA = (3.0, 8.0)
 #: 1.46x, 0: 0.306 / 0.08 / 1.42x. The mean's blur (lighting only: the input is
 #: demodulated; within 2 px) goes once the camera stops.
 CURRENT_WEIGHT_MOVING = 0.0
-#: A moving pixel's history lent by a neighbour's surface (footprint texels of a 3x3
-#: neighbour's surface, ``borrow_history``): weight of its temporal spread in the clip
-#: box and in the second moment kept (1: as its own history's; a still pixel: 1).
-LENT_SPREAD_MOVING = 1.0
-#: ... only where the lending 3x3 neighbour moves against the pixel by more than this (px^2).
-LENT_MOTION_SQ = 0.0
 #: An old texel that is not this pixel's surface is still kept as "an edge the jitter
 #: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
 #: brings the texel within this many px of the pixel (per axis; equal motion gives
@@ -321,8 +315,6 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
-        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING)
-        set_uniform(prog, "u_lent_motion", LENT_MOTION_SQ)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
