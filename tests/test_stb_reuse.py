@@ -468,14 +468,14 @@ def test_no_nan_or_inf(gl_ctx, opts):
 
 
 #: The configuration of the cost bound (issue 31), its fused pass with the area pass.
-SHARE_TILE = dict(reuse_candidates=64, reuse_k=0, reuse_res="share", reuse_target="tile")
+COST_CONFIG = dict(reuse_candidates=64, reuse_k=0, reuse_res="share", reuse_target="tile")
 
 
 @pytest.mark.parametrize(
     "opts, temporal",
     [
-        (SHARE_TILE, "off"),
-        (dict(SHARE_TILE, reuse_visibility=True), "taa"),  # the taa inputs, the history
+        (COST_CONFIG, "off"),
+        (dict(COST_CONFIG, reuse_visibility=True), "taa"),  # the taa inputs, the history
         ({"reuse_candidates": 32, "reuse_k": 0, "reuse_temporal": "off"}, "off"),  # per pixel
     ],
 )
