@@ -11,7 +11,8 @@
 //    the jitter moves the pixel between faces at one depth, and a stricter test
 //    dropped ~5 % of a still courtyard's pixels every frame); where nothing of the
 //    footprint matches but the texel's old surface is still beside the pixel (an edge
-//    the jitter crosses), a 3x3 texel that saw this surface lends its history;
+//    the jitter crosses), a 3x3 texel that saw this surface lends its history (not a
+//    nearer surface's to a moving pixel: parallax, an occluder's trail);
 //  * history rejection on noisy input: variance clipping of the history against a
 //    depth-weighted 13-tap neighbourhood (3x3 + 4 taps at distance 2) of lighting
 //    demodulated by albedo (the statistics of a spatially pre-filtered signal, not
@@ -51,6 +52,7 @@ uniform float u_reset;         // 1: ignore the history
 uniform vec2 u_max_len;        // history length cap (frames): moving, still pixel
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
+uniform float u_lent_near;     // 1: a nearer surface's history may be lent to a moving pixel; 0: not
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -168,6 +170,7 @@ struct Reprojection {
     float gamma;    // clip box half extent (std devs)
     float max_len;  // history length cap (frames)
     float cur_w;    // weight of the pixel's own sample against the neighbourhood mean
+    float still;    // 1: the surface has not moved (< 0.5 px); 0: moved >= 0.5 px
     vec3 prev_p;    // this surface's point in the previous view space (m)
     vec3 prev_n;    // ... its normal there
 };
@@ -185,6 +188,7 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
     r.gamma = mix(u_gamma.x, u_gamma.y, still);
     r.max_len = floor(mix(u_max_len.x, u_max_len.y, still) + 0.5);
     r.cur_w = mix(u_cur_weight, 1.0, still);
+    r.still = still;
     r.prev_p = vec3(0.0);
     r.prev_n = vec3(0.0);
     if (d > 0.0) {
@@ -259,6 +263,20 @@ bool neighbour_surface(vec4 g, vec3 gn, float dj, vec3 nj, float shift) {
     return dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4 && dot(gn, nj) > 0.0;
 }
 
+// May old texel `g`, a 3x3 neighbour's surface, lend its history to this pixel? Not
+// to a moving pixel (u_lent_near 0) when it lay nearer than this pixel's surface did
+// in the previous view (beyond same_surface's 3 %): that is a foreground occluder
+// whose silhouette moves over this surface (parallax: the chess orbit's back-row
+// pieces over the table behind them), and its history kept the occluder's light as a
+// trail, the clip box being widened by the history's own temporal spread (issue 31,
+// docs/STB_NOTES.md "(taa10)", "(taa11)"). The pixel then borrows its own surface's
+// history from beside (borrow_history) or starts again. A still pixel keeps the
+// jitter's edges: its history is the edge's antialiasing.
+bool may_lend(vec4 g, Reprojection r) {
+    bool nearer = g.x < r.prev_d - (0.03 * r.prev_d + 1e-4);
+    return !nearer || r.still >= 0.5 || u_lent_near > 0.5;
+}
+
 // Disocclusion over the 4 texels of the bilinear footprint and the bilinear sums of
 // the agreeing ones. Each 3x3 neighbour's depth and normal is fetched once, and only
 // while a footprint texel still needs it (edge pixels).
@@ -288,7 +306,8 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
         for (int k = 0; k < 4; ++k) {
             if (inside[k] && !same[k] && d > 0.0 && g[k].x > 0.0) {
                 vec2 texel = vec2(base + ivec2(k & 1, k >> 1)) + 0.5;
-                same[k] = moves_beside(texel, mvj) && neighbour_surface(g[k], gn[k], dj, nj, shift);
+                same[k] = moves_beside(texel, mvj) && neighbour_surface(g[k], gn[k], dj, nj, shift)
+                          && may_lend(g[k], r);
                 open = open || !same[k];
             }
         }

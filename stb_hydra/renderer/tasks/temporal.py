@@ -120,6 +120,17 @@ YOUNG_PLANE = 0.5
 EDGE_LEFT_CAP = 1.0
 EDGE_MOTION_SQ = 0.25
 EDGE_RUN = 8.0
+#: May a nearer surface's history be lent to a moving pixel as "an edge the jitter
+#: crosses" (1: yes, before taa11; 0: no)? A foreground silhouette moving over the
+#: surface behind it (parallax) left its light as a trail on the background it uncovered:
+#: the uncovered pixels were lent the occluder's history and the clip box, widened by
+#: that history's own temporal spread, kept it (issue 31, docs/STB_NOTES.md "(taa10)",
+#: "(taa11)"). With 0 such a pixel borrows its own surface's history from beside it or
+#: starts again; a still pixel keeps the jitter's edges (its antialiasing). Orbits at
+#: 320x180, HDR-FLIP / instability, 1 -> 0: 256-light chess, exact lighting + taa 0.2118
+#: / 0.85x -> 0.1837 / 0.81x, opt-in reuse 0.2287 -> 0.2003; courtyard, STB defaults
+#: 0.1721 / 1.28x -> 0.1665 / 1.26x (relMSE 0.379 -> 0.465: early frames).
+LENT_FROM_NEARER = 0.0
 
 
 #: The 13-tap neighbourhood of temporal.frag (``TAPS``: the pixel, its 3x3, 4 taps at
@@ -316,6 +327,7 @@ class TemporalTask(Pass):
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
+        set_uniform(prog, "u_lent_near", LENT_FROM_NEARER)
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
