@@ -53,6 +53,7 @@ uniform vec2 u_max_len;        // history length cap (frames): moving, still pix
 uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still pixel
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
 uniform float u_lent_near;     // 1: a nearer surface's history may be lent to a moving pixel; 0: not
+uniform float u_lent_spread;   // a moving pixel's lent history: weight of its temporal spread (0-1)
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -220,6 +221,7 @@ struct Footprint {
     float valid_w;   // sum of the agreeing texels' bilinear weights
     int valid_n;     // agreeing texels (4: Catmull-Rom)
     float edge_run;  // most frames in a row an agreeing texel's history had an edge beside it
+    bool lent;       // some of it is a neighbour's surface's history (borrow_history: all of it)
 };
 
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
@@ -288,6 +290,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
     bool inside[4];
     bool same[4];
     bool open = false;  // some texel may still be a neighbour's surface
+    bool lent = false;
     for (int k = 0; k < 4; ++k) {
         ivec2 t = base + ivec2(k & 1, k >> 1);
         inside[k] = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, size));
@@ -308,11 +311,12 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
                 vec2 texel = vec2(base + ivec2(k & 1, k >> 1)) + 0.5;
                 same[k] = moves_beside(texel, mvj) && neighbour_surface(g[k], gn[k], dj, nj, shift)
                           && may_lend(g[k], r);
+                lent = lent || same[k];
                 open = open || !same[k];
             }
         }
     }
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, lent);
     for (int k = 0; k < 4; ++k) {
         if (!same[k]) continue;
         vec4 h = texelFetch(u_history, base + ivec2(k & 1, k >> 1), 0);
@@ -337,7 +341,7 @@ Footprint footprint_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection 
 // that saw this surface last frame (nearest depth, same side) stands in, instead of
 // starting again from one frame's noise. Only such pixels pay for the search.
 Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) {
-    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0);
+    Footprint fp = Footprint(vec3(0.0), 0.0, 0.0, 0.0, 0, 0.0, true);
     ivec2 c0 = ivec2(floor(r.pos));
     if (any(lessThan(c0, ivec2(0))) || any(greaterThanEqual(c0, size))) return fp;
     float g0 = texelFetch(u_prev_geo, c0, 0).x;
@@ -367,7 +371,7 @@ Footprint borrow_history(ivec2 ip, ivec2 size, float d, vec3 n, Reprojection r) 
         if (err >= best) continue;
         best = err;
         vec4 h = texelFetch(u_history, t, 0);
-        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a));
+        fp = Footprint(h.rgb, g.w, h.a, 1.0, 1, edge_run(h.a), true);
     }
     return fp;
 }
@@ -451,9 +455,19 @@ vec4 blend(vec3 cur, vec3 m1, vec3 sigma, Reprojection r, Footprint fp, out floa
         // pulled converged history back to one frame's noise).
         float mom2 = fp.mom2 / fp.valid_w;
         float lh = luma(h);
-        float sigma_t = sqrt(max(mom2 - lh * lh, 0.0));
+        float var_t = max(mom2 - lh * lh, 0.0);
+        // A history lent by a neighbour's surface (an edge the jitter crosses, or
+        // borrow_history's): its spread is partly the neighbour's and that between the
+        // two surfaces, not this surface's noise; a moving pixel takes only
+        // u_lent_spread of it (by how far it moved), in the box and in the moment
+        // kept. Lit by the reuse only (temporal.py LENT_SPREAD_MOVING); 1 (STB
+        // defaults, others): this branch never runs, images unchanged.
+        bool cut = fp.lent && u_lent_spread < 1.0 && r.still < 1.0;
+        if (cut) var_t *= mix(u_lent_spread, 1.0, r.still);
+        float sigma_t = sqrt(var_t);
         vec3 ext = r.gamma * max(sigma, vec3(sigma_t)) + 1e-3 * m1;
         h = clip_towards_mean(m1, ext, h);
+        if (cut) mom2 = luma(h) * luma(h) + var_t;
         len = min(floor(fp.hist_len / fp.valid_w + 0.5) + 1.0, r.max_len);
         result = mix(h, mix(m1, cur, clamp((len - 1.0) / 4.0, 0.0, r.cur_w)), 1.0 / len);
         tm2 = mix(mom2, tm2, 1.0 / len);

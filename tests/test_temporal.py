@@ -295,6 +295,23 @@ def test_young_weights_fit_a_quadratic():
     assert abs(float(g @ cubic) - c[0]) < 1e-9
 
 
+def test_lent_spread_only_under_the_reuse():
+    """The temporal pass takes a lent history's spread out of its clip box only when STB
+    lights with reservoir reuse (docs/STB_NOTES.md "(taa12)"): STB defaults, the reuse
+    switched off and other methods keep the whole spread (1: their images unchanged)."""
+    from stb_hydra.renderer.tasks.temporal import LENT_SPREAD_MOVING, lit_by_reuse
+
+    def spread(lighting, **o):
+        return LENT_SPREAD_MOVING[lit_by_reuse(RenderSettings(lighting=lighting, method_options=o))]
+
+    assert spread("stb") == 1.0
+    assert spread("stb", reuse="off") == 1.0
+    assert spread("reference") == 1.0
+    assert spread("tiled") == 1.0
+    assert spread("stb", reuse="on") < 1.0
+    assert spread("stb", reuse=True, N=4, big_tile=16) < 1.0
+
+
 def test_temporal_setting_is_checked():
     with pytest.raises(ValueError, match="temporal must be one of"):
         RenderSettings(temporal="blur")

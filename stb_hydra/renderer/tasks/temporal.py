@@ -29,11 +29,12 @@ import numpy as np
 
 from ... import limits
 from ..camera import ViewSetup
-from ..frame import FrameContext
+from ..frame import FrameContext, RenderSettings
 from ..fullscreen import draw_fullscreen
 from ..gl import set_uniform, shader_library
 from ..graph import Imported, Rec, Tex
 from ..light_changes import Rule, change_uniforms, light_changes, light_snapshot
+from ..lighting import validate_options
 from ..lighting.base import TAA_INPUTS
 from ..records import FrameBlock, SceneColor
 from .base import Pass
@@ -131,6 +132,15 @@ EDGE_RUN = 8.0
 #: / 0.85x -> 0.1837 / 0.81x, opt-in reuse 0.2287 -> 0.2003; courtyard, STB defaults
 #: 0.1721 / 1.28x -> 0.1665 / 1.26x (relMSE 0.379 -> 0.465: early frames).
 LENT_FROM_NEARER = 0.0
+#: A moving pixel's history lent by a neighbour's surface (an edge the jitter crosses, a
+#: ``borrow_history`` history): weight of its temporal spread in the clip box and in the
+#: second moment kept (1: as its own history's; a still pixel always 1), (under other
+#: lighting, under STB's reservoir reuse ``-o reuse=on``). That spread is partly the
+#: neighbour's and that between the two surfaces. 0 measured under STB defaults made the
+#: courtyard orbit flicker more (1.28x -> 1.46x: the widening is what keeps STB's
+#: tile-shared noise from being clipped back each frame), so it applies to the reuse's
+#: input only (issue 31, docs/STB_NOTES.md "(taa10)", "(taa12)").
+LENT_SPREAD_MOVING = (1.0, 0.0)
 
 
 #: The 13-tap neighbourhood of temporal.frag (``TAPS``: the pixel, its 3x3, 4 taps at
@@ -193,6 +203,13 @@ def halton_jitter(frame_index: int) -> tuple[float, float]:
     return _halton(i, 2) - 0.5, _halton(i, 3) - 0.5
 
 
+def lit_by_reuse(settings: RenderSettings) -> bool:
+    """The frame's lighting is STB with reservoir reuse (``-o reuse=on``)."""
+    if settings.lighting != "stb":
+        return False
+    return bool(validate_options("stb", settings.method_options)["reuse"])
+
+
 def is_camera_cut(prev: ViewSetup, cur: ViewSetup, scene_diagonal: float) -> bool:
     """A view change too large to reproject (a cut, not motion)."""
     cosang = float(np.clip(np.dot(prev.forward, cur.forward), -1.0, 1.0))
@@ -241,6 +258,8 @@ class TemporalTask(Pass):
         self._changes: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 4)), np.zeros(0))
         #: Why the history was dropped on the last frame ("" = kept).
         self.last_reset = ""
+        #: (lighting, options) -> lit by the reuse (:func:`lit_by_reuse`), last asked.
+        self._reuse: tuple[str, str, bool] | None = None
 
     @property
     def latest(self) -> tuple[str, str]:
@@ -281,6 +300,12 @@ class TemporalTask(Pass):
                 reason = "cut"
         self._size = (int(size[0]), int(size[1]))
         return reason
+
+    def _lit_by_reuse(self, settings: RenderSettings) -> bool:
+        key = (settings.lighting, repr(sorted(settings.method_options.items())))
+        if self._reuse is None or self._reuse[:2] != key:
+            self._reuse = (*key, lit_by_reuse(settings))
+        return self._reuse[2]
 
     def execute(self, frame: FrameContext) -> None:
         ctx = frame.ctx
@@ -328,6 +353,7 @@ class TemporalTask(Pass):
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_lent_near", LENT_FROM_NEARER)
+        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[self._lit_by_reuse(frame.settings)])
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
