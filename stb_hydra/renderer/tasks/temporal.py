@@ -139,7 +139,9 @@ LENT_FROM_NEARER = 0.0
 #: neighbour's and that between the two surfaces. 0 measured under STB defaults made the
 #: courtyard orbit flicker more (1.28x -> 1.46x: the widening is what keeps STB's
 #: tile-shared noise from being clipped back each frame), so it applies to the reuse's
-#: input only (issue 31, docs/STB_NOTES.md "(taa10)", "(taa12)").
+#: input only (issue 31, docs/STB_NOTES.md "(taa10)", "(taa12)"). Opt-in reuse orbits at
+#: 320x180, HDR-FLIP / instability, 1 -> 0: 256-light chess 0.2003 / 0.83x -> 0.1972 / 0.81x,
+#: courtyard 0.1177 / 1.12x -> 0.1131 / 1.14x (0.5: 0.1997, 0.1169).
 LENT_SPREAD_MOVING = (1.0, 0.0)
 
 
