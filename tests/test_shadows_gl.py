@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from masks import dilate
 from pxr import UsdGeom
 from stagegen import USDA_HEADER, camera_usda, ground_usda, plane_points, usda_stage
 
@@ -43,18 +44,6 @@ def render(stage, frames: int = 1, **settings) -> tuple[np.ndarray, Engine]:
     for _ in range(frames):
         eng.render_frame()
     return eng.aovs["color"][..., :3], eng
-
-
-def dilate(m: np.ndarray, r: int) -> np.ndarray:
-    out = m.copy()
-    for _ in range(r):
-        o = out.copy()
-        o[1:] |= out[:-1]
-        o[:-1] |= out[1:]
-        o[:, 1:] |= out[:, :-1]
-        o[:, :-1] |= out[:, 1:]
-        out = o
-    return out
 
 
 BOX = """def Cube "Box"
