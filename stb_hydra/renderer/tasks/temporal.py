@@ -260,8 +260,6 @@ class TemporalTask(Pass):
         self._changes: tuple[np.ndarray, np.ndarray] = (np.zeros((0, 4)), np.zeros(0))
         #: Why the history was dropped on the last frame ("" = kept).
         self.last_reset = ""
-        #: (lighting, options) -> lit by the reuse (:func:`lit_by_reuse`), last asked.
-        self._reuse: tuple[str, str, bool] | None = None
 
     @property
     def latest(self) -> tuple[str, str]:
@@ -302,12 +300,6 @@ class TemporalTask(Pass):
                 reason = "cut"
         self._size = (int(size[0]), int(size[1]))
         return reason
-
-    def _lit_by_reuse(self, settings: RenderSettings) -> bool:
-        key = (settings.lighting, repr(sorted(settings.method_options.items())))
-        if self._reuse is None or self._reuse[:2] != key:
-            self._reuse = (*key, lit_by_reuse(settings))
-        return self._reuse[2]
 
     def execute(self, frame: FrameContext) -> None:
         ctx = frame.ctx
@@ -355,7 +347,7 @@ class TemporalTask(Pass):
         set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_lent_near", LENT_FROM_NEARER)
-        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[self._lit_by_reuse(frame.settings)])
+        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[lit_by_reuse(frame.settings)])
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
