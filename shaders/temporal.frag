@@ -224,13 +224,19 @@ struct Footprint {
     bool lent;       // some of it is a neighbour's surface's history (borrow_history: all of it)
 };
 
+// How far (m) an old texel's depth may lie from a surface's depth `depth` and still be
+// that surface (same_surface, neighbour_surface, may_lend): 3 %.
+float depth_tol(float depth) {
+    return 0.03 * depth + 1e-4;
+}
+
 // Previous texel `g` (depth, oct normal; gn decoded) is this pixel's surface: the
 // depth it had in the previous view, not its opposite side (sky: sky).
 bool same_surface(vec4 g, vec3 gn, float d, vec3 n, Reprojection r, ivec2 t) {
     if (d <= 0.0) {
         return g.x <= 0.0;
     }
-    bool ok = g.x > 0.0 && abs(g.x - r.prev_d) <= 0.03 * r.prev_d + 1e-4 && dot(gn, n) > -0.5;
+    bool ok = g.x > 0.0 && abs(g.x - r.prev_d) <= depth_tol(r.prev_d) && dot(gn, n) > -0.5;
     if (ok && u_plane_tol > 0.0) {
         // The texel's old point (its pixel centre through the previous view's
         // projection, jitter included) lies on this surface's tangent plane: a face
@@ -262,7 +268,7 @@ bool moves_beside(vec2 texel, vec2 mvj) {
 // whose normal turns by more than that between neighbours, every time the jitter
 // moved them on or off the rim.)
 bool neighbour_surface(vec4 g, vec3 gn, float dj, vec3 nj, float shift) {
-    return dj > 0.0 && abs(g.x - (dj + shift)) <= 0.03 * g.x + 1e-4 && dot(gn, nj) > 0.0;
+    return dj > 0.0 && abs(g.x - (dj + shift)) <= depth_tol(g.x) && dot(gn, nj) > 0.0;
 }
 
 // May old texel `g`, a 3x3 neighbour's surface, lend its history to this pixel? Not
@@ -275,7 +281,7 @@ bool neighbour_surface(vec4 g, vec3 gn, float dj, vec3 nj, float shift) {
 // history from beside (borrow_history) or starts again. A still pixel keeps the
 // jitter's edges: its history is the edge's antialiasing.
 bool may_lend(vec4 g, Reprojection r) {
-    bool nearer = g.x < r.prev_d - (0.03 * r.prev_d + 1e-4);
+    bool nearer = g.x < r.prev_d - depth_tol(r.prev_d);
     return !nearer || r.still >= 0.5 || u_lent_near > 0.5;
 }
 
