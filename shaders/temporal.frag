@@ -41,6 +41,7 @@ uniform sampler2D u_normal;    // g_normal: octahedral world normal
 uniform sampler2D u_motion;    // g_motion: current (jittered) - previous (unjittered) px
 uniform sampler2D u_history;   // previous demodulated lighting, a = history length (linear)
 uniform sampler2D u_prev_geo;  // previous depth (m), octahedral normal, luma 2nd moment
+uniform sampler2D u_base_rough;  // g_base_rough: base colour, perceptual roughness (a)
 uniform mat4 u_prev_view;      // previous world -> view
 uniform vec4 u_prev_tan;       // previous view: tan half extents xy, aperture offsets zw (unit depth)
 uniform float u_edge_slack;    // px: how far a neighbour's motion may leave an old texel (edges)
@@ -54,6 +55,18 @@ uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
 uniform float u_lent_near;     // 1: a nearer surface's history may be lent to a moving pixel; 0: not
 uniform float u_lent_spread;   // a moving pixel's lent history: weight of its temporal spread (0-1)
+// History cap from the specular lobe (x: k, 0 = off; y: least frames): k x the lobe's
+// width (GGX alpha, rad) / the angle (rad) the view direction at the surface turned
+// since the previous frame -- about how far a highlight slides over the surface a
+// frame, so older history holds it where it was (a lag that reprojection by the
+// surface's motion cannot follow).
+uniform vec2 u_lobe;
+// Compiled in only where the cap is on (the reuse's variant: temporal.py), so that STB
+// defaults' program is main's: llvmpipe runs an `if`'s body in every SIMD stamp, masked,
+// and a loop of 0 trips still cost ~5 % of the pass there.
+#ifndef TAA_LOBE_CAP
+#define TAA_LOBE_CAP 0
+#endif
 // Young history (shorter than u_young.x frames: a disocclusion): the display shows,
 // with weight u_young.y (tapering to 0 at u_young.x), a Savitzky-Golay estimate
 // (quadratic least squares over the 5x5 grid around the pixel, weights u_young_c)
@@ -197,6 +210,21 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
         r.prev_p = (u_prev_view * vec4(world, 1.0)).xyz;
         r.prev_d = max(-r.prev_p.z, 1e-6);
         r.prev_n = mat3(u_prev_view) * n;
+#if TAA_LOBE_CAP
+        if (u_lobe.x > 0.0) {
+            // the previous camera: position -R^T t of u_prev_view (perspective), its
+            // backward axis (orthographic)
+            mat3 pr = mat3(u_prev_view);
+            bool ortho = u_cam_pos.w > 0.5;
+            vec3 v0 = ortho ? normalize(u_inv_view[2].xyz) : normalize(u_cam_pos.xyz - world);
+            vec3 pb = vec3(pr[0][2], pr[1][2], pr[2][2]);
+            vec3 v1 = ortho ? normalize(pb) : normalize(-(transpose(pr) * u_prev_view[3].xyz) - world);
+            float turn = 2.0 * asin(min(0.5 * length(v0 - v1), 1.0));  // (acos loses small angles)
+            float rough = texelFetch(u_base_rough, ip, 0).a;
+            float lobe = u_lobe.x * max(rough * rough, 1e-3) / max(turn, 1e-6);
+            r.max_len = min(r.max_len, max(floor(lobe), u_lobe.y));
+        }
+#endif
         for (int i = 0; i < u_light_changes; ++i) {
             if (distance(world, u_light_spheres[i].xyz) < u_light_spheres[i].w) {
                 r.max_len = min(r.max_len, u_light_caps[i]);

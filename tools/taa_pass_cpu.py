@@ -8,6 +8,7 @@ time), one process per tree, trees alternating (``PYTHONPATH=TREE``):
 
     LP_NUM_THREADS=0 .venv/bin/python tools/taa_pass_cpu.py usd_scenes/default.usda \\
         --after 6 --after 34   # 6: young histories after a start; 34: steady state
+    ... tools/taa_pass_cpu.py usd_scenes/default.usda -o reuse=on,N=4   # STB's options
 
 Pass times from ``tools/taa_cost.py`` (wall, every pass of the frame) vary by +-25 %
 between runs minutes apart on the shared 2-core VM; this measures only the draw, many
@@ -24,11 +25,14 @@ import time
 import moderngl
 
 import stb_hydra.renderer.tasks.temporal as temporal
+from stb_hydra.apps.common import parse_options
 from stb_hydra.renderer.engine import Engine
 from stb_hydra.renderer.frame import RenderSettings
 
 
-def pass_cpu_ms(stage: str, width: int, height: int, after: int, repeats: int) -> float:
+def pass_cpu_ms(
+    stage: str, width: int, height: int, after: int, repeats: int, options: dict | None = None
+) -> float:
     """Median process-CPU ms of the temporal draw of frame ``after`` (0-based) of a
     still camera, executed ``repeats`` times."""
     draw = temporal.draw_fullscreen
@@ -53,7 +57,9 @@ def pass_cpu_ms(stage: str, width: int, height: int, after: int, repeats: int) -
 
     temporal.draw_fullscreen = timed
     try:
-        settings = RenderSettings(width=width, height=height, lighting="stb", temporal="taa")
+        settings = RenderSettings(
+            width=width, height=height, lighting="stb", temporal="taa", method_options=options or {}
+        )
         eng = Engine(stage, settings)
         try:
             for _ in range(after):
@@ -74,9 +80,11 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--height", type=int, default=360)
     ap.add_argument("--after", type=int, action="append", help="frames rendered first (repeatable)")
     ap.add_argument("--repeats", type=int, default=25)
+    ap.add_argument("-o", "--options", default="", help="STB's options, KEY=VALUE[,...]")
     args = ap.parse_args(argv)
+    options = parse_options(args.options, "-o")
     for after in args.after or [6, 34]:
-        ms = pass_cpu_ms(args.stage, args.width, args.height, after, args.repeats)
+        ms = pass_cpu_ms(args.stage, args.width, args.height, after, args.repeats, options)
         print(f"after {after}: {ms:.1f} ms", flush=True)
 
 

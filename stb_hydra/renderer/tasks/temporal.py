@@ -76,6 +76,25 @@ CLIP_GAMMA = (3.0, 8.0)
 #: 1.46x, 0: 0.306 / 0.08 / 1.42x. The mean's blur (lighting only: the input is
 #: demodulated; within 2 px) goes once the camera stops.
 CURRENT_WEIGHT_MOVING = 0.0
+#: Under STB's reservoir reuse (``-o reuse=on``, issue 31), whose input is much less
+#: noisy than STB's: a moving pixel's history cap (frames; MAX_HISTORY[0] otherwise) and
+#: its own sample's weight (CURRENT_WEIGHT_MOVING otherwise). The long history and the
+#: neighbourhood mean that keep STB's tile noise from flickering blur and drag the
+#: reuse's sharper lighting (docs/STB_NOTES.md "(taa13)"). Opt-in reuse orbits at
+#: 320x180, HDR-FLIP / instability (frames 8+): (32, 0) -> (8, 0.25): courtyard 0.1131 /
+#: 1.14x -> 0.1088 / 1.20x, 256-light chess 0.1972 / 0.81x -> 0.1830 / 0.84x; (8, 0):
+#: courtyard 0.1098 / 1.15x; (8, 0.5): 0.1085 / 1.32x, chess 0.1804.
+REUSE_MOVING = (8.0, 0.25)
+#: Under the reuse: each pixel's history cap from its specular lobe, (k, least frames):
+#: k x the lobe's width (GGX alpha = roughness^2, radians) over the angle (radians) the
+#: view direction at the surface turned since the previous frame. A highlight slides
+#: over the surface by about that angle a frame, so history older than that holds it
+#: where it was: the lag that reprojection by the surface's motion cannot follow (the
+#: chess orbit's error grew along the orbit; NRD's specular history is capped by
+#: roughness and parallax alike). A still camera turns nothing: no cap. Orbits as above
+#: with (8, 0.25), (0.5, 4): chess 0.1830 -> 0.1698 / 0.91x, courtyard 0.1088 -> 0.1089
+#: (its surfaces are rough); (1, 4) 0.1714, (0.25, 4) 0.1701, (0.5, 3) 0.1685 / 0.95x.
+REUSE_LOBE = (0.5, 4.0)
 #: An old texel that is not this pixel's surface is still kept as "an edge the jitter
 #: crosses" (a 3x3 neighbour shows its surface now) only if that neighbour's motion
 #: brings the texel within this many px of the pixel (per axis; equal motion gives
@@ -235,6 +254,7 @@ class TemporalTask(Pass):
         *TAA_INPUTS,
         Tex("g_normal", "rg16f"),
         Tex("g_motion", "rg16f"),
+        Tex("g_base_rough", "rgba16f"),
         Rec(SceneColor),
         Rec(FrameBlock),
         Imported("light_table"),
@@ -313,7 +333,12 @@ class TemporalTask(Pass):
         tex = bufs.textures
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
-        prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag")
+        reuse = lit_by_reuse(frame.settings)
+        # the reuse's variant compiles the specular-lobe cap in (REUSE_LOBE)
+        defines: dict[str, object] | None = None
+        if reuse and REUSE_LOBE[0] > 0:
+            defines = {"TAA_LOBE_CAP": 1}
+        prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag", defines)
         units = (
             ("u_demod", DEMOD),
             ("u_albedo", ALBEDO),
@@ -321,6 +346,7 @@ class TemporalTask(Pass):
             ("u_motion", "g_motion"),
             ("u_history", h_src),
             ("u_prev_geo", g_src),
+            ("u_base_rough", "g_base_rough"),
         )
         for unit, (uniform, name) in enumerate(units):
             tex[name].use(unit)
@@ -333,6 +359,12 @@ class TemporalTask(Pass):
         spheres, caps = self._changes
         sph, cap, everywhere = change_uniforms(spheres, caps, MAX_LIGHT_CHANGES)
         max_len = tuple(float(m) for m in self.max_history)
+        cur_weight = CURRENT_WEIGHT_MOVING
+        lobe = (0.0, 0.0)  # off: no per-pixel cap from the specular lobe
+        if reuse:  # the reuse's cleaner input: a shorter moving history, its own samples
+            max_len = (min(max_len[0], REUSE_MOVING[0]), max_len[1])
+            cur_weight = REUSE_MOVING[1]
+            lobe = REUSE_LOBE
         n = len(caps)
         if everywhere is not None:  # too many to test per pixel: cap everywhere
             max_len = tuple(min(m, everywhere) for m in max_len)
@@ -344,10 +376,11 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_spheres", sph)
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
-        set_uniform(prog, "u_cur_weight", CURRENT_WEIGHT_MOVING)
+        set_uniform(prog, "u_cur_weight", cur_weight)
+        set_uniform(prog, "u_lobe", lobe)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_lent_near", LENT_FROM_NEARER)
-        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[lit_by_reuse(frame.settings)])
+        set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[reuse])
         set_uniform(prog, "u_plane_tol", PLANE_TOLERANCE)
         set_uniform(prog, "u_young", (YOUNG_LEN, YOUNG_WEIGHT, YOUNG_PLANE, EDGE_LEFT_CAP or 1e9))
         set_uniform(prog, "u_young_c", _YOUNG_C)
