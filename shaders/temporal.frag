@@ -55,12 +55,13 @@ uniform vec2 u_gamma;          // clip box half extent (std devs): moving, still
 uniform float u_cur_weight;    // a moving pixel's own sample against the neighbourhood mean
 uniform float u_lent_near;     // 1: a nearer surface's history may be lent to a moving pixel; 0: not
 uniform float u_lent_spread;   // a moving pixel's lent history: weight of its temporal spread (0-1)
-// History cap from the specular lobe (x: k, 0 = off; y: least frames): k x the lobe's
+// History cap from the specular lobe (x: k; y: least frames): k x the lobe's
 // width (GGX alpha, rad) / the angle (rad) the view direction at the surface turned
 // since the previous frame -- about how far a highlight slides over the surface a
 // frame, so older history holds it where it was (a lag that reprojection by the
 // surface's motion cannot follow).
 uniform vec2 u_lobe;
+uniform vec4 u_prev_eye;  // previous camera: position (m), w 0; orthographic: backward axis, w 1
 // Compiled in only where the cap is on (the reuse's variant: temporal.py), so that STB
 // defaults' program is main's: llvmpipe runs an `if`'s body in every SIMD stamp, masked,
 // and a loop of 0 trips still cost ~5 % of the pass there.
@@ -211,15 +212,10 @@ Reprojection reproject(ivec2 ip, float d, vec3 n) {
         r.prev_d = max(-r.prev_p.z, 1e-6);
         r.prev_n = mat3(u_prev_view) * n;
 #if TAA_LOBE_CAP
-        if (u_lobe.x > 0.0) {
-            // the previous camera: position -R^T t of u_prev_view (perspective), its
-            // backward axis (orthographic)
-            mat3 pr = mat3(u_prev_view);
-            bool ortho = u_cam_pos.w > 0.5;
-            vec3 v0 = ortho ? normalize(u_inv_view[2].xyz) : normalize(u_cam_pos.xyz - world);
-            vec3 pb = vec3(pr[0][2], pr[1][2], pr[2][2]);
-            vec3 v1 = ortho ? normalize(pb) : normalize(-(transpose(pr) * u_prev_view[3].xyz) - world);
-            float turn = 2.0 * asin(min(0.5 * length(v0 - v1), 1.0));  // (acos loses small angles)
+        {
+            vec3 v1 = u_prev_eye.w > 0.5 ? normalize(u_prev_eye.xyz) : normalize(u_prev_eye.xyz - world);
+            vec3 dv = view_dir(world) - v1;
+            float turn = 2.0 * asin(min(0.5 * length(dv), 1.0));  // (acos loses small angles)
             float rough = texelFetch(u_base_rough, ip, 0).a;
             float lobe = u_lobe.x * max(rough * rough, 1e-3) / max(turn, 1e-6);
             r.max_len = min(r.max_len, max(floor(lobe), u_lobe.y));

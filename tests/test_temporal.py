@@ -9,6 +9,7 @@ import numpy as np
 import optimised
 import pytest
 from masks import dilate
+from material_scenes import preview_material
 from pxr import Gf, Usd, UsdGeom
 from stagegen import USDA_HEADER, camera_usda, ground_usda, usda_stage
 
@@ -422,30 +423,21 @@ def test_parallax_leaves_no_ghost_of_the_occluder():
 
 def _glossy_orbit(frames: int, step_deg: float = 4.0) -> Usd.Stage:
     """A dark glossy floor (UsdPreviewSurface, roughness 0.3) under one small sphere
-    light 0.4 m above it; the camera orbits the light's foot (3 m out, 1.5 m up, looking
-    at it, ``step_deg`` a frame): the highlight stays near the image centre while the
-    floor turns under it, so a history that follows the floor drags the highlight back
-    to where it was."""
-    ang = [np.radians(step_deg * (t - frames // 2)) for t in range(1, frames + 1)]
-    r, up = 3.0, 1.5
-    pos = ", ".join(
-        f"{t}: ({r * np.sin(a):.5f}, {up}, {r * np.cos(a):.5f})" for t, a in enumerate(ang, 1)
-    )
-    rot = ", ".join(f"{t}: {np.degrees(a):.4f}" for t, a in enumerate(ang, 1))
-    pitch = -np.degrees(np.arctan2(up, r))
-    return usda_stage(
-        USDA_HEADER + 'def Camera "Cam"\n{\n    float focalLength = 18\n'
-        "    float horizontalAperture = 36\n    float verticalAperture = 20.25\n"
-        f"    double3 xformOp:translate.timeSamples = {{{pos}}}\n"
-        f"    float xformOp:rotateY.timeSamples = {{{rot}}}\n"
-        f"    float xformOp:rotateX = {pitch:.4f}\n"
-        '    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateY", '
-        '"xformOp:rotateX"]\n}\n'
-        'def Material "Gloss"\n{\n    token outputs:surface.connect = </Gloss/S.outputs:surface>\n'
-        '    def Shader "S"\n    {\n        uniform token info:id = "UsdPreviewSurface"\n'
-        "        color3f inputs:diffuseColor = (0.2, 0.2, 0.2)\n"
-        "        float inputs:roughness = 0.3\n        token outputs:surface\n    }\n}\n"
-        'def Mesh "Floor" (\n    prepend apiSchemas = ["MaterialBindingAPI"]\n)\n{\n'
+    light 0.4 m above it; the camera (3 m out, 1.5 m up, looking at the light's foot)
+    orbits that foot by ``step_deg`` a frame (``orbit_camera``): the highlight stays near
+    the image centre while the floor turns under it, so a history that follows the floor
+    drags the highlight back to where it was."""
+    up, out = 1.5, 3.0
+    pitch = np.degrees(np.arctan2(up, out))
+    stage = usda_stage(
+        USDA_HEADER
+        + camera_usda((0, up, out), -pitch)
+        + preview_material(
+            "Gloss",
+            "        color3f inputs:diffuseColor = (0.2, 0.2, 0.2)\n"
+            "        float inputs:roughness = 0.3\n",
+        )
+        + 'def Mesh "Floor" (\n    prepend apiSchemas = ["MaterialBindingAPI"]\n)\n{\n'
         "    int[] faceVertexCounts = [4]\n    int[] faceVertexIndices = [0, 1, 2, 3]\n"
         "    point3f[] points = [(-10, 0, -10), (-10, 0, 10), (10, 0, 10), (10, 0, -10)]\n"
         "    rel material:binding = </Gloss>\n}\n"
@@ -453,6 +445,8 @@ def _glossy_orbit(frames: int, step_deg: float = 4.0) -> Usd.Stage:
         "    float inputs:radius = 0.05\n    double3 xformOp:translate = (0, 0.4, 0)\n"
         '    uniform token[] xformOpOrder = ["xformOp:translate"]\n}\n'
     )
+    orbit_camera(stage, frames, step_deg, float(np.hypot(up, out)))
+    return stage
 
 
 def test_reuse_highlight_keeps_up_with_a_moving_camera():

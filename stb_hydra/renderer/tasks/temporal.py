@@ -334,10 +334,9 @@ class TemporalTask(Pass):
         hist = tex[h_src]
         hist.filter = (moderngl.LINEAR, moderngl.LINEAR)  # Catmull-Rom's bilinear taps
         reuse = lit_by_reuse(frame.settings)
+        lobe_cap = reuse and REUSE_LOBE[0] > 0
         # the reuse's variant compiles the specular-lobe cap in (REUSE_LOBE)
-        defines: dict[str, object] | None = None
-        if reuse and REUSE_LOBE[0] > 0:
-            defines = {"TAA_LOBE_CAP": 1}
+        defines: dict[str, object] | None = {"TAA_LOBE_CAP": 1} if lobe_cap else None
         prog = shader_library(ctx).program("fullscreen.vert", "temporal.frag", defines)
         units = (
             ("u_demod", DEMOD),
@@ -360,11 +359,13 @@ class TemporalTask(Pass):
         sph, cap, everywhere = change_uniforms(spheres, caps, MAX_LIGHT_CHANGES)
         max_len = tuple(float(m) for m in self.max_history)
         cur_weight = CURRENT_WEIGHT_MOVING
-        lobe = (0.0, 0.0)  # off: no per-pixel cap from the specular lobe
         if reuse:  # the reuse's cleaner input: a shorter moving history, its own samples
             max_len = (min(max_len[0], REUSE_MOVING[0]), max_len[1])
             cur_weight = REUSE_MOVING[1]
-            lobe = REUSE_LOBE
+        if lobe_cap:
+            eye = -prev.forward if prev.orthographic else prev.position
+            set_uniform(prog, "u_prev_eye", (*(float(v) for v in eye), float(prev.orthographic)))
+            set_uniform(prog, "u_lobe", REUSE_LOBE)
         n = len(caps)
         if everywhere is not None:  # too many to test per pixel: cap everywhere
             max_len = tuple(min(m, everywhere) for m in max_len)
@@ -377,7 +378,6 @@ class TemporalTask(Pass):
             set_uniform(prog, "u_light_caps", cap)
         set_uniform(prog, "u_gamma", CLIP_GAMMA)
         set_uniform(prog, "u_cur_weight", cur_weight)
-        set_uniform(prog, "u_lobe", lobe)
         set_uniform(prog, "u_edge_slack", EDGE_MOTION_SLACK)
         set_uniform(prog, "u_lent_near", LENT_FROM_NEARER)
         set_uniform(prog, "u_lent_spread", LENT_SPREAD_MOVING[reuse])
