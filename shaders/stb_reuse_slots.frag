@@ -41,6 +41,10 @@ uniform ivec2 u_block;         // slot block per big tile (K = x * y)
 layout(location = 0) out vec4 o_pos;
 layout(location = 1) out vec4 o_shape;
 layout(location = 2) out vec4 o_axis;
+#ifdef HAS_LINKS
+#include "common/links.glsl"
+layout(location = 3) out uint o_link;  // the light's link mask over the groups (0: empty)
+#endif
 
 // IES (unless per pixel: ies_pixel) x emission model of L towards the point X (leaving
 // the light); the cone is the pixel's (o_axis): cone.y past CONE_CUTOFF_TEST_RAD skips it.
@@ -77,6 +81,9 @@ void main() {
     o_pos = vec4(0.0);
     o_shape = vec4(0.0, 0.0, 0.0, -1.0);
     o_axis = vec4(0.0, 0.0, 0.0, -2.0);
+#ifdef HAS_LINKS
+    o_link = 0u;
+#endif
     if (li == LIM_EMPTY_LIGHT_INDEX || li >= u_counts.x || !(Wj > 0.0)) return;
     Light L = lights[li];
     ivec2 tile = p / u_block;
@@ -119,4 +126,7 @@ void main() {
     o_pos = L.pos_range;
     o_shape = vec4(I, he, Wj, ies_pixel ? L.tint_ies.w : -1.0);
     o_axis = slot_axis(L);
+#ifdef HAS_LINKS
+    o_link = link_mask[li];
+#endif
 }

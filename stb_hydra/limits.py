@@ -469,6 +469,14 @@ STB_REUSE_RADIUS_PX = 24.0
 #: target, as a fraction of its candidates' mean target (dimensionless; > 0 keeps the
 #: reservoir unbiased for the quad's other three pixels, larger adds noise at the one).
 STB_REUSE_QUAD_FLOOR = 0.05
+#: Quad-shared reservoirs (``-o reuse_res=share``): the MIS weight of the quad pixel i
+#: that drew a light y is c_i / sum_j c_j, c_j = min(p_j(y) / (ratio x max_l p_l(y)), 1)
+#: (p: each pixel's target). Pixels whose target is within this ratio of the quad's
+#: largest weigh alike (one light, or a smooth target, comes out exact: the four pixels'
+#: disjoint strata make the balance heuristic's p_i / sum p_j a per-quad noise of the
+#: target's slope); below it the weight falls with p_i, which bounds the contribution of
+#: a pixel that drew y with a small target by 1 / ratio of its weight sum (no fireflies).
+STB_REUSE_SHARE_MIS_RATIO = 0.5
 #: Same-surface tests of the reuse (temporal and spatial): relative linear-depth
 #: difference, cosine between the normals, roughness difference.
 STB_REUSE_DEPTH_REL = 0.1

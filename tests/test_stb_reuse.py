@@ -102,11 +102,9 @@ def test_closed_form_scene_is_what_the_reference_renders(gl_ctx, many_lights):
         # The cheap initial target (point lights here: it differs by no cone / area).
         ({"reuse_candidates": 32, "reuse_k": 0, "reuse_target": "cheap"}, 3e-3, 64),
         # The 2x2 quad shares: 16 candidates per pixel, the quad's four reservoirs
-        # combined at each pixel by the balance heuristic (fine-derivative exchange).
-        ({"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share"}, 3e-3, 64),
-        # ... with the per-slot target (the shaping once per big-tile slot; the pixel's
-        # part from three texels -- the cone per pixel -- and a rational stand-in for the
-        # specular pow).
+        # combined at each pixel (fine-derivative exchange), with the per-slot target
+        # (the shaping once per big-tile slot; the pixel's part from three texels -- the
+        # cone per pixel -- and a rational stand-in for the specular pow).
         (
             {"reuse_candidates": 64, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
             3e-3,
@@ -439,9 +437,15 @@ def shadowed_scene() -> str:
         {"reuse_candidates": 8, "reuse_res": "quad", "reuse_shadow_floor": 0.1},
         {"reuse_candidates": 16, "reuse_k": 0, "reuse_target": "cheap", "weight_cap": None},
         # quad-shared candidates; under taa too (reuse_temporal is then ignored)
-        {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "weight_cap": None},
-        {"reuse_candidates": 4, "reuse_k": 0, "reuse_res": "share", "reuse_temporal": "on"},
         {"reuse_candidates": 32, "reuse_k": 0, "reuse_res": "share", "reuse_target": "tile"},
+        {
+            "reuse_candidates": 4,
+            "reuse_k": 0,
+            "reuse_res": "share",
+            "reuse_target": "tile",
+            "reuse_temporal": "on",
+            "weight_cap": None,
+        },
         {"reuse_candidates": 16, "reuse_target": "tile", "reuse_shadow_floor": 0.1},
         # 16 px big tiles (the slots' 2 x 2 grid), shared quad and per pixel
         {
@@ -527,6 +531,26 @@ def test_reuse_with_light_links_is_unbiased(gl_ctx):
     for cols in (Q1_COLS, Q2_COLS, slice(None)):
         assert abs(got[:, cols].mean() / ref[:, cols].mean() - 1.0) < 0.025, cols
     assert _rel(got[:, Q2_COLS], ref[:, Q2_COLS]) < 0.05
+
+
+@pytest.mark.parametrize("big_tile", [16, 32])
+def test_share_is_exact_with_one_light(gl_ctx, big_tile):
+    """One sphere light over the Lambertian floor (tests/test_closed_form_hard.py's closed
+    form): the quad-shared reservoirs (16 of the K = 64 slots per pixel; the one light's
+    slot lands in one pixel's stratum) give every pixel the light with W = 1: within
+    0.2 % of the closed form at every pixel, one frame. (The balance heuristic
+    p_i / sum p_j left each quad a per-quad error of its targets' spread: 2.7 % median,
+    4.4 % max.)"""
+    from test_closed_form_hard import RHO as rho
+    from test_closed_form_hard import floor_stage, ground_points, local_light, point_illuminance
+    from test_closed_form_hard import render as render_floor
+
+    lpos = (0.3, 2.0, -0.2)
+    stage = floor_stage(local_light("SphereLight", lpos))
+    exp = rho / math.pi * point_illuminance(ground_points(stage), 1000 * math.pi * 0.01, lpos)
+    img = render_floor(stage, "stb", **dict(SHARE_TILE, big_tile=big_tile))
+    rel = np.abs(img[..., 0] - exp) / exp
+    assert rel.max() < 2e-3, (np.median(rel), rel.max())
 
 
 def test_live_toggle(gl_ctx, many_lights):
@@ -689,13 +713,18 @@ def test_taa_sliding_box_leaves_no_trail(gl_ctx, opts):
     texels for a jitter edge -- ``reuse`` settled in 9 frames. ``share_tile`` settled in
     16 before taa8 -- a young history's noise and the history mixed at the box's edge --
     and in 7 with taa's young-history estimate and edge-left cap, docs/STB_NOTES.md
-    "(taa8)"; 11-14 with either alone.)"""
+    "(taa8)"; 11-14 with either alone.) A young history cannot beat a perfect
+    disocclusion, so the level at each frame is also 1.2x the error of the same sequence
+    with taa's whole history dropped at the uncovering ("restart"): since share's MIS
+    fix (docs/STB_NOTES.md "(share MIS)") its still level is 39 % lower, and even the
+    restart takes 11 frames to reach 1.5x it (``share_tile`` 13, 1.1x the restart)."""
     from stb_hydra.metrics import frames_to_settle
 
     e = _slide_errors(opts)
-    level = 1.5 * float(np.median(e["still"][SLIDE_UNCOVERED:]))
-    settle = frames_to_settle(e["moving"][SLIDE_UNCOVERED:], level)
-    assert settle <= 8, (settle, e["moving"][SLIDE_UNCOVERED:].round(3).tolist(), level)
+    after = slice(SLIDE_UNCOVERED, None)
+    level = np.maximum(1.5 * float(np.median(e["still"][after])), 1.2 * e["restart"][after])
+    settle = frames_to_settle(e["moving"][after] / level, 1.0)
+    assert settle <= 8, (settle, e["moving"][after].round(3).tolist(), level.round(3).tolist())
 
 
 def test_taa_sliding_box_leaves_no_ghost(gl_ctx):
@@ -719,7 +748,9 @@ def test_taa_sliding_box_leaves_no_ghost(gl_ctx):
 
 
 def test_reuse_candidate_options_are_checked():
-    """reuse_candidates must divide K; quad reservoirs need big-tile candidates."""
+    """reuse_candidates must divide K; quad reservoirs need big-tile candidates; the
+    quad-shared reservoirs need no spatial reuse and the tile target without a shadow
+    gather."""
     from stb_hydra.renderer.lighting.options import OptionError
     from stb_hydra.renderer.lighting.stb import StbLighting
 
@@ -729,6 +760,16 @@ def test_reuse_candidate_options_are_checked():
         {"reuse_res": "quad"},
         {"reuse_res": "share", "reuse_candidates": 32},  # spatial reuse (k = 4) on
         {"reuse_res": "share", "reuse_candidates": 0, "reuse_k": 0},
+        # the exchange reads textures only (llvmpipe's helper invocations load no SSBO)
+        {"reuse_res": "share", "reuse_candidates": 32, "reuse_k": 0, "reuse_target": "full"},
+        {"reuse_res": "share", "reuse_candidates": 32, "reuse_k": 0, "reuse_target": "cheap"},
+        {
+            "reuse_res": "share",
+            "reuse_candidates": 32,
+            "reuse_k": 0,
+            "reuse_target": "tile",
+            "reuse_shadow_floor": 0.5,
+        },
         {"reuse_target": "tile", "reuse_candidates": 16, "reuse_res": "quad"},
     ):
         with pytest.raises(OptionError):

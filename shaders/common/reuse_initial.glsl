@@ -61,6 +61,9 @@ float reuse_cheap_target(uint li, Surface s, uint group) {
 uniform sampler2D u_slot_pos;    // rgba32f: light position (m), range (m)
 uniform sampler2D u_slot_shape;  // rgba32f: shaped cd, half extent (m), W_bt (0: empty), IES layer (-1: none here)
 uniform sampler2D u_slot_axis;   // rgba32f: axis / dc, (cos cutoff + dc) / dc (no cone: unit axis, -2)
+#ifdef HAS_LINKS
+uniform usampler2D u_slot_link;  // r32ui: the light's link mask (a texture: see common/reuse_share.glsl)
+#endif
 #ifdef HAS_IES
 uniform sampler2DArray u_ies_cos;  // per layer: the table's max over phi against cos off the axis
 #endif
@@ -73,7 +76,7 @@ uint reuse_slot_light(ivec2 texel) {
 float reuse_slot_target(vec4 pr, vec4 sh, vec4 ax, ivec2 texel, Surface s, uint group) {
     if (!(sh.z > 0.0)) return 0.0;
 #ifdef HAS_LINKS
-    if (!light_linked(reuse_slot_light(texel), group)) return 0.0;
+    if (((texelFetch(u_slot_link, texel, 0).r >> group) & 1u) == 0u) return 0.0;
 #endif
     vec3 d = pr.xyz - s.P;
     float dist = length(d);

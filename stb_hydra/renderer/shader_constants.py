@@ -205,6 +205,7 @@ def _glsl_constants() -> dict[str, str]:
         "LIM_REUSE_NORMAL_COS": f"{limits.STB_REUSE_NORMAL_COS:.6f}",
         "LIM_REUSE_ROUGHNESS_DIFF": f"{limits.STB_REUSE_ROUGHNESS_DIFF:.6f}",
         "LIM_REUSE_QUAD_FLOOR": f"{limits.STB_REUSE_QUAD_FLOOR:.6f}",
+        "LIM_REUSE_SHARE_MIS_RATIO": f"{limits.STB_REUSE_SHARE_MIS_RATIO:.6f}",
         "LIM_BIGTILE_SHAPE_FLOOR": f"{limits.STB_BIGTILE_SHAPE_FLOOR:.6f}",
         "LIM_REUSE_SLOT_GRID": str(limits.STB_REUSE_SLOT_GRID),
         "LIM_REUSE_SLOT_SHAPE_FLOOR": f"{limits.STB_REUSE_SLOT_SHAPE_FLOOR:.6f}",

@@ -277,6 +277,16 @@ class StbLighting(LightingMethod):
             raise OptionError(
                 "stb option reuse_res=share: needs reuse_candidates >= 4 and reuse_k=0"
             )
+        if o["reuse_res"] == "share" and (
+            o["reuse_target"] != "tile" or o["reuse_shadow_floor"] < 1
+        ):
+            # The quad's exchange needs every invocation's values, helper invocations'
+            # too; the full and cheap targets and the shadow gather read the light
+            # buffer, which Mesa's llvmpipe does not load in helper invocations (a quad
+            # on its seam of the full-screen triangle would lose picks: noise there).
+            raise OptionError(
+                "stb option reuse_res=share: needs reuse_target=tile and reuse_shadow_floor=1"
+            )
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
 

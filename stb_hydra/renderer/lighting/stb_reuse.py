@@ -69,7 +69,10 @@ SURFACE = ("stb_reuse_geo0", "stb_reuse_geo1")
 PARTIAL = "stb_reuse_partial"
 #: Per-slot halves of the initial target (``-o reuse_target=tile``, big-tile layout).
 SLOTS = ("stb_reuse_slot_pos", "stb_reuse_slot_shape", "stb_reuse_slot_axis")
-SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_axis")
+#: ... and, in scenes with light links, the slot's light's link mask (r32ui): the slot
+#: target reads it from a texture, not the link SSBO (``common/reuse_share.glsl``).
+SLOT_LINK = "stb_reuse_slot_link"
+SLOT_UNIFORMS = ("u_slot_pos", "u_slot_shape", "u_slot_axis", "u_slot_link")
 #: MIS weights of the spatial combination (``-o reuse_mis``).
 MIS_MODES = {"count": 0, "balance": 1, "pairwise": 2}
 
@@ -81,6 +84,7 @@ def reuse_textures() -> tuple[Tex, ...]:
         *(Tex(n, "rgba32ui") for n in HISTORY),
         *(Tex(n, "rgba32f") for n in SURFACE),
         *(Tex(n, "rgba32f") for n in SLOTS),
+        Tex(SLOT_LINK, "r32ui"),
         Tex(PARTIAL, "rgba32f"),
     )
 
@@ -394,16 +398,21 @@ class ReuseStage:
         self, method: Any, frame: FrameContext, defines: dict[str, Any], big: moderngl.Texture
     ) -> tuple[moderngl.Texture, ...]:
         """``stb_reuse_slots.frag``: each big-tile slot's half of the initial target
-        (``-o reuse_target=tile``), three rgba32f textures in the big tiles' layout."""
+        (``-o reuse_target=tile``), three rgba32f textures in the big tiles' layout, and
+        the r32ui link masks in scenes with light links."""
         bufs = frame.buffers
         texs = tuple(bufs.texture(n, 4, "f4", size=big.size) for n in SLOTS)
+        names = list(SLOTS)
+        if method.light_links:
+            texs += (bufs.texture(SLOT_LINK, 1, "u4", size=big.size),)
+            names.append(SLOT_LINK)
         grid = slot_grid(int(method.o["big_tile"]))
         prog = program(frame, "stb_reuse_slots.frag", dict(defines, STB_REUSE_SLOT_GRID=grid))
         method._common_uniforms(frame, prog)
         unit = method.bind_common(frame, prog)
         method._bind(frame, prog, unit, "u_bigtile", big)
         method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", bufs.textures[f"hiz{method.hiz_level}"])
-        method._pass(frame, prog, list(SLOTS), big.size)
+        method._pass(frame, prog, names, big.size)
         return texs
 
     def _finish(
