@@ -102,7 +102,12 @@ IES_MAX_TILT_PAIRS = 1024
 
 # --- Tiles (STB) ------------------------------------------------------------------------
 
+#: Big tile side (px) of the talk's pipeline (``-o reuse=off``).
 BIG_TILE_PX = 128
+#: ... and under the reservoir reuse, the default of ``--lighting stb`` (issue 31): each
+#: pixel resamples its big tile's K reservoirs itself, so a small big tile (K candidates
+#: fit to 16 x 16 px) is what its quality rests on (docs/STB_NOTES.md, reuse5).
+STB_REUSE_BIG_TILE_PX = 16
 SMALL_TILE_PX = 16
 QUAD_PX = 2
 #: Big-tile reservoir slots K: 16 in the talk; 4..64 for the trade-off study. Default 64
@@ -476,7 +481,10 @@ STB_REUSE_QUAD_FLOOR = 0.05
 #: disjoint strata make the balance heuristic's p_i / sum p_j a per-quad noise of the
 #: target's slope); below it the weight falls with p_i, which bounds the contribution of
 #: a pixel that drew y with a small target by 1 / ratio of its weight sum (no fireflies).
-STB_REUSE_SHARE_MIS_RATIO = 0.5
+#: 0.25: a glossy highlight's quads (targets 2-4x apart) are exact too, where 0.5 left
+#: them 16 % off; 16-frame stills of chess / courtyard alike for 0.5 ... 0.1 (relMSE
+#: within 3 %), 0.03 worse (docs/STB_NOTES.md "(share MIS)").
+STB_REUSE_SHARE_MIS_RATIO = 0.25
 #: Same-surface tests of the reuse (temporal and spatial): relative linear-depth
 #: difference, cosine between the normals, roughness difference.
 STB_REUSE_DEPTH_REL = 0.1

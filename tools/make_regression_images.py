@@ -46,7 +46,7 @@ def main() -> int:
 
     # The cases and their rendering are the test's own (tests/ is not a package).
     sys.path.insert(0, str(ROOT / "tests"))
-    from test_regression_images import CASES, render_case
+    from test_regression_images import CASES, _relmse, render_case
 
     if "--images" not in sys.argv[1:]:
         write_scenes()
@@ -56,10 +56,18 @@ def main() -> int:
         if not np.all(np.isfinite(img)):
             raise SystemExit(f"{case.name}: non-finite pixels")
         path = OUT / f"{case.name}.exr"
-        # Identical pixels: the file stays as it is (a rewrite changes its bytes, and
-        # the diff would show an image that did not change).
-        same = path.is_file() and np.array_equal(read_image(path)[0], img)
-        if not same:
+        # Pixels the test accepts (STB: identical; the others: relMSE <= 1e-6, their
+        # last bits drift with the driver): the file stays as it is (a rewrite changes
+        # its bytes, and the diff would show an image that did not change).
+        same = False
+        if path.is_file():
+            old = read_image(path)[0][..., :3]
+            same = np.array_equal(old, img) or (
+                case.lighting != "stb" and _relmse(img, old) <= 1e-6
+            )
+        if same:
+            img = old
+        else:
             write_image(path, img, pixel_type="float")
         index[case.name] = {"mean": float(img.mean())}
         print(f"{case.name}: mean {img.mean():.6g}{' (unchanged)' if same else ''}")
