@@ -224,11 +224,10 @@ def test_record_schema_and_pass_sum(run):
         total = sum(r["passes"].values()) + cpu
         assert r["accounted_fraction"] == pytest.approx(total / r["frame_ms"], abs=2e-3)
         assert r["frame_ms_min"] <= r["frame_ms"] <= r["frame_ms_max"]
-        if r["method"] == "stb":
+        if r["method"] == "stb":  # the default: the reuse's slot and shading passes
             assert {
                 "lighting.stb_bigtile",
-                "lighting.stb_smalltile",
-                "lighting.stb_terms",
+                "lighting.stb_reuse_slot_pos",
                 "lighting.stb_lighting",
             } <= set(r["passes"])
 

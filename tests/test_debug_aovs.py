@@ -25,7 +25,7 @@ from stb_hydra.renderer.lighting.stb import REUSE_DEBUG_AOVS, SLOT_BLOCKS, decod
 from stb_hydra.renderer.records import InViewLights
 from stb_hydra.renderer.tasks.aov_output import DEBUG_AOVS, STB_DEBUG_AOVS, check_debug_aovs
 
-#: The views of an STB engine without ``-o reuse=on`` (the reuse views:
+#: The views of the talk's STB pipeline, ``-o reuse=off`` (the reuse views, STB's default:
 #: tests/test_reuse_debug_views.py).
 PLAIN_VIEWS = tuple(a for a in DEBUG_AOVS if a not in REUSE_DEBUG_AOVS)
 PLAIN_STB_VIEWS = tuple(a for a in STB_DEBUG_AOVS if a not in REUSE_DEBUG_AOVS)
@@ -59,7 +59,10 @@ def stage():
 
 
 def render(stage, lighting: str, aovs, **opts):
-    """(engine results, frame, engine) of one final frame; the caller releases."""
+    """(engine results, frame, engine) of one final frame; the caller releases. STB: the
+    talk's pipeline (``reuse=False``) unless ``opts`` says otherwise."""
+    if lighting == "stb":
+        opts = {"reuse": False, **opts}
     eng = Engine(stage, RenderSettings(width=W, height=H, lighting=lighting, method_options=opts))
     eng.request_aovs(set(aovs))
     frame = eng.render_frame()
@@ -264,6 +267,18 @@ def test_cli_refuses_stb_views_with_one_line(tmp_path, stage):
     assert not out.exists()
 
 
+def test_talk_views_under_the_reuse_name_the_option():
+    """STB's default (the reuse) draws neither small tiles nor terms: asking for their
+    views says which option does, in one line."""
+    from stb_hydra.renderer.lighting.stb import StbLighting
+
+    with pytest.raises(ValueError, match="shadowterms need -o reuse=off"):
+        check_debug_aovs(["shadowterms"], "stb", StbLighting(None))
+    with pytest.raises(ValueError, match="smalltile need -o reuse=off or -o reuse_candidates=0"):
+        check_debug_aovs(["smalltile"], "stb", StbLighting(None))
+    check_debug_aovs(["smalltile"], "stb", StbLighting(None, reuse_candidates=0))
+
+
 def test_cli_writes_debug_aovs_beside_the_image(tmp_path):
     scene = tmp_path / "s.usda"
     scene.write_text(scene_text(6))
@@ -282,6 +297,8 @@ def test_cli_writes_debug_aovs_beside_the_image(tmp_path):
             "54",
             "--lighting",
             "stb",
+            "-o",
+            "reuse=off",
             "--aov",
             ",".join(PLAIN_VIEWS),
         ],

@@ -202,13 +202,13 @@ def test_engine_graph_is_ordered_and_described(stage):
 def test_debug_passes_join_only_when_requested(stage):
     eng = engine(stage, "stb")
     try:
-        assert "debug_smalltile" not in [p.name for p in eng.tasks]
-        eng.request_aovs({"smalltile", "lightcount"})
+        assert "debug_reuse_light" not in [p.name for p in eng.tasks]
+        eng.request_aovs({"reuse_light", "lightcount"})
         names = [p.name for p in eng.tasks]
-        assert "debug_smalltile" in names and "debug_lightcount" in names
+        assert "debug_reuse_light" in names and "debug_lightcount" in names
         assert "debug_bigtile" not in names
         eng.render()
-        assert eng.aovs["smalltile"].shape == (36, 64, 3)
+        assert eng.aovs["reuse_light"].shape == (36, 64, 3)
         assert eng.aovs["lightcount"].max() >= 1
     finally:
         eng.release()
@@ -277,10 +277,42 @@ def test_options_are_coerced_from_cli_text():
 def test_every_method_declares_a_documented_schema():
     for name, cls in METHODS.items():
         assert cls.name == name
+        defaults = cls.options.defaults()  # defaults that depend on others resolved
         for opt in cls.options:
             assert opt.doc, f"{name}.{opt.name} has no doc"
-            cls.options.validate(name, {opt.name: opt.default})  # defaults are valid
+            cls.options.validate(name, {opt.name: defaults[opt.name]})  # defaults are valid
+        cls.check_options(dict(defaults))  # and agree with each other
         assert set(cls.debug_aovs) <= set(DEBUG_AOVS) <= set(AOVS)
+
+
+def test_option_defaults_may_follow_other_options():
+    """STB's defaults that follow other options (``options.Auto``): the reuse's 16 px
+    big tiles and quad-shared reservoirs by default, the talk's 128 px with reuse off,
+    per-pixel reservoirs once spatial reuse or a target share cannot read is asked for;
+    the help names the rule, and a given value always wins."""
+    from stb_hydra import limits
+
+    stb = METHODS["stb"]
+
+    def v(**given):
+        return stb.validate_options(given)
+
+    d = v()
+    assert (d["reuse"], d["big_tile"], d["reuse_candidates"], d["reuse_res"]) == (
+        True,
+        limits.STB_REUSE_BIG_TILE_PX,
+        d["K"],
+        "share",
+    )
+    assert (d["reuse_k"], d["reuse_target"]) == (0, "tile")
+    assert v(reuse=False)["big_tile"] == limits.BIG_TILE_PX
+    assert v(reuse_candidates=0)["big_tile"] == limits.BIG_TILE_PX
+    assert v(K=16)["reuse_candidates"] == 16
+    assert (v(reuse_k=4)["reuse_res"], v(reuse_k=4)["reuse_k"]) == ("pixel", 4)
+    assert v(reuse_target="full")["reuse_res"] == "pixel"
+    assert v(reuse_res="quad")["reuse_target"] == "full"
+    assert v(reuse=False, big_tile=32)["big_tile"] == 32
+    assert "with reuse" in stb.options.opts["big_tile"].describe()
 
 
 def test_shadow_budget_is_resolved_in_settings():

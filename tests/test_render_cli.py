@@ -270,7 +270,7 @@ def test_print_graph_describes_the_frame_and_renders_nothing(stb, scene: Path, t
         "--lighting",
         "stb",
         "--aov",
-        "smalltile",
+        "reuse_m",
         "--print-graph",
     )
     assert r.returncode == 0, r.stderr
@@ -282,7 +282,7 @@ def test_print_graph_describes_the_frame_and_renders_nothing(stb, scene: Path, t
         if ln[:4].strip().isdigit() and ". " in ln
     ]
     assert order.index("gbuffer") < order.index("hiz") < order.index("lighting")
-    assert "debug_smalltile" in order and "debug_bigtile" not in order  # culled: not asked for
+    assert "debug_reuse_m" in order and "debug_bigtile" not in order  # culled: not asked for
     assert not out.exists()
 
 

@@ -2,7 +2,8 @@
 on real GL: each view's colours are what the reservoir textures hold (decoded here from
 the raw render buffers, coloured by the numpy twins of the shaders' colour functions),
 the rejection mask shows the disocclusion a sliding box causes, the views exist only
-with ``-o reuse=on``, and the previewer offers and drops them with the option."""
+with the reuse (STB's default; not with ``-o reuse=off``), and the previewer offers and
+drops them with the option."""
 
 from __future__ import annotations
 
@@ -92,14 +93,16 @@ def test_light_and_m_views_colour_the_stored_reservoirs(gl_ctx, slider_stage):
 
 
 def test_reuse_views_need_reuse_on(gl_ctx, slider_stage):
-    """Without ``-o reuse=on`` asking for a reuse view is a one-line error naming the
-    option; switching reuse off on a live engine drops the view and keeps rendering."""
-    eng = Engine(slider_stage, RenderSettings(width=32, height=18, lighting="stb"))
+    """With ``-o reuse=off`` (the talk's pipeline) asking for a reuse view is a one-line
+    error naming the option; switching reuse off on a live engine drops the view and
+    keeps rendering."""
+    settings = RenderSettings(width=32, height=18, lighting="stb", method_options={"reuse": False})
+    eng = Engine(slider_stage, settings)
     try:
         assert not set(REUSE_DEBUG_AOVS) & set(eng.method.debug_aovs)
         with pytest.raises(ValueError, match="reuse_m need -o reuse=on"):
             eng.request_aovs({"reuse_m"})
-        eng.set_lighting("stb", reuse=True, N=4)
+        eng.set_lighting("stb")  # the default: the reuse
         eng.request_aovs({"reuse_m"})
         eng.render()
         assert eng.aovs["reuse_m"].shape == (18, 32, 3)
@@ -117,11 +120,12 @@ def test_previewer_offers_reuse_views_with_the_option(gl_ctx, tmp_path):
 
     scene = tmp_path / "slider.usda"
     scene.write_text(USDA_HEADER + camera_usda((0, 8, 8), -45) + ground_usda(20) + SLIDER)
-    s = PreviewSession(scene, RenderSettings(width=48, height=27, lighting="stb"), ctx=gl_ctx)
+    settings = RenderSettings(width=48, height=27, lighting="stb", method_options={"reuse": False})
+    s = PreviewSession(scene, settings, ctx=gl_ctx)
     try:
         assert s.error is None, s.error
         assert "reuse_m" not in s.views()
-        assert s.set_options(reuse=True, N=4)
+        assert s.set_options(reuse=True)
         assert set(REUSE_DEBUG_AOVS) <= set(s.views())
         assert s.set_view("reuse_reject")
         for _ in range(3):
@@ -137,7 +141,7 @@ def test_previewer_offers_reuse_views_with_the_option(gl_ctx, tmp_path):
 
 
 def test_cli_refuses_reuse_views_without_reuse_in_one_line(tmp_path):
-    """``stb render --aov reuse_m`` without ``-o reuse=on``: exit 2 and one line naming
+    """``stb render --aov reuse_m -o reuse=off``: exit 2 and one line naming
     the option, no traceback (the check needs the method's options, so it is the
     engine's; the CLI turns it into its error)."""
     from stb_hydra.apps.cli import main
@@ -160,6 +164,8 @@ def test_cli_refuses_reuse_views_without_reuse_in_one_line(tmp_path):
                 "18",
                 "--lighting",
                 "stb",
+                "-o",
+                "reuse=off",
                 "--aov",
                 "reuse_m",
                 "--quiet",

@@ -1,5 +1,7 @@
 """STB lighting on real GL: reservoir structure, A-Chao statistics, unbiasedness,
-numerics at the extremes, determinism. Small images, fixed seeds."""
+numerics at the extremes, determinism. Small images, fixed seeds. The talk's pipeline
+(``-o reuse=off``: ``TALK``) unless a test says otherwise; STB's default, the reservoir
+reuse, has tests/test_stb_reuse.py."""
 
 from __future__ import annotations
 
@@ -51,7 +53,13 @@ def lights_scene(n: int, seed: int = 1, cube: bool = True, cones: bool = False) 
     return "".join(s)
 
 
+#: The talk's pipeline (big tiles, small tiles, shadow terms): what this module tests.
+TALK = {"reuse": False}
+
+
 def stb_engine(stage, w=256, h=144, **opts) -> Engine:
+    """An STB engine, the talk's pipeline unless ``opts`` says otherwise."""
+    opts = {**TALK, **opts}
     return Engine(stage, RenderSettings(width=w, height=h, lighting="stb", method_options=opts))
 
 
@@ -194,6 +202,7 @@ def unbiased_case(select: str, bigtile: str):
     ref = stb_hydra.render(stage, width=w, height=h, lighting="reference")
     # 32 px big tiles at 128x72 cover the same view angle as 128 px tiles at 512x288.
     opts = dict(
+        TALK,
         weight_cap=None,
         N=4,
         K=64,
@@ -246,7 +255,7 @@ def test_unbiased_mean_converges_to_reference(gl_ctx, select, bigtile, frames):
 
 def test_weight_cap_darkens_but_stays_finite(gl_ctx):
     stage = usda_stage(lights_scene(200))
-    capped = stb_hydra.render(stage, width=128, height=72, lighting="stb", accumulate=16)
+    capped = stb_hydra.render(stage, width=128, height=72, lighting="stb", accumulate=16, **TALK)
     ref = stb_hydra.render(stage, width=128, height=72, lighting="reference")
     assert np.isfinite(capped).all()
     assert capped.mean() <= ref.mean() * 1.02
@@ -392,6 +401,9 @@ def test_no_nan_or_inf_at_any_setting(gl_ctx):
     targets = ("segment", "uniform", "shaped")
     for K, cap, target in _pairwise_with_corners([(4, 64), (None, 8.0), targets]):
         runs.append(dict(K=K, weight_cap=cap, target=target, bigtile="clusters"))
+    runs = [{**TALK, **o} for o in runs]
+    # STB's default, the reuse (its own option matrix: tests/test_stb_reuse.py)
+    runs += [dict(K=K, weight_cap=cap) for K in (4, 64) for cap in (None, 8.0)]
     for opts in runs:
         img = stb_hydra.render(stage, width=96, height=54, lighting="stb", **opts)
         assert np.isfinite(img).all(), opts
@@ -413,7 +425,7 @@ def test_progressive_snapshots_are_the_renders_of_that_many_frames(gl_ctx, tempo
     6 frames of one accumulation is bit for bit ``render(accumulate=n)``'s image --
     the same seeds, the mid-run read-backs disturb nothing."""
     stage = usda_stage(lights_scene(60))
-    kw = dict(width=64, height=36, lighting="stb", seed=5, N=2, temporal=temporal)
+    kw = dict(width=64, height=36, lighting="stb", seed=5, N=2, temporal=temporal, **TALK)
     got = stb_hydra.render_progressive(stage, (6, 1, 3), **kw)
     assert sorted(got) == [1, 3, 6]
     for n, img in got.items():

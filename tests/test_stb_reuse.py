@@ -27,8 +27,11 @@ from stb_hydra.renderer.lighting.stb_reuse import CURRENT, fov_remap
 
 W, H = 160, 90
 RHO = 0.5
-#: The reuse configuration under test: N = 4 candidates per pixel, unbiased MIS.
-REUSE = dict(reuse=True, N=4, reuse_mis="balance")
+#: The ReSTIR-style configuration under test: the small tile's N = 4 samples as each
+#: pixel's candidates (``reuse_candidates=0``: 128 px big tiles, per-pixel reservoirs,
+#: temporal and spatial reuse), unbiased MIS. STB's default (candidates from the big
+#: tile, shared over the 2x2 quad): ``SHARE_TILE`` and the cases that set them.
+REUSE = dict(reuse=True, N=4, reuse_mis="balance", reuse_candidates=0)
 
 
 def floor_lights(n: int, seed: int = 3) -> tuple[str, np.ndarray, np.ndarray]:
@@ -237,12 +240,19 @@ def test_tile_target_unbiased_and_quiet_with_spot_cones(gl_ctx, extra, ies):
         assert c.relmse <= 5e-3, c
 
 
-def test_reuse_off_is_todays_pipeline(gl_ctx, many_lights):
-    """``reuse=off`` (the default) renders bit for bit what no option renders."""
+def test_reuse_off_is_the_talks_pipeline(gl_ctx, many_lights):
+    """``reuse=off`` is the talk's whole configuration (128 px big tiles, N = 1, K = 64:
+    the defaults before the reuse became STB's): bit for bit what those options render
+    explicitly, and not the default's image. (Its images are also the regression set's
+    ``stb_talk`` rows, kept from before the switch: tests/test_regression_images.py.)"""
     stage, _ = many_lights
-    a = stb_hydra.render(stage, width=64, height=36, lighting="stb", accumulate=2)
-    b = stb_hydra.render(stage, width=64, height=36, lighting="stb", accumulate=2, reuse=False)
-    assert np.array_equal(a, b)
+    kw = dict(width=64, height=36, lighting="stb", accumulate=2)
+    talk = stb_hydra.render(stage, **kw, reuse=False)
+    spelled = stb_hydra.render(stage, **kw, reuse=False, big_tile=128, N=1, K=64)
+    assert np.array_equal(talk, spelled)
+    assert not np.array_equal(talk, stb_hydra.render(stage, **kw))
+    default = SHARE_TILE | {"N": 1, "big_tile": 16, "K": 64}
+    assert np.array_equal(stb_hydra.render(stage, **kw), stb_hydra.render(stage, **kw, **default))
 
 
 # --- history ----------------------------------------------------------------------------
@@ -607,9 +617,10 @@ def test_taa_light_switched_off_vanishes_within_two_frames(gl_ctx):
     assert abs(left[-1]) < 0.1, left
 
 
-#: The opt-in configuration of docs/STB_NOTES.md (reuse3/reuse4; 16 px big tiles since
-#: reuse7): per-pixel candidates shared over the 2x2 quad, the tile target, no spatial
-#: reuse (no reservoir history: taa does all the temporal work).
+#: STB's default spelled out (the opt-in configuration of docs/STB_NOTES.md's reuse3 /
+#: reuse4, 16 px big tiles since reuse7, the default since deliverable 7): per-pixel
+#: candidates shared over the 2x2 quad, the tile target, no spatial reuse (no reservoir
+#: history: taa does all the temporal work).
 SHARE_TILE = dict(
     reuse=True,
     N=4,
@@ -757,8 +768,8 @@ def test_reuse_candidate_options_are_checked():
     for bad in (
         {"reuse_candidates": 24},
         {"reuse_candidates": 32, "K": 16},
-        {"reuse_res": "quad"},
-        {"reuse_res": "share", "reuse_candidates": 32},  # spatial reuse (k = 4) on
+        {"reuse_res": "quad", "reuse_candidates": 0},
+        {"reuse_res": "share", "reuse_candidates": 32, "reuse_k": 4},  # spatial reuse on
         {"reuse_res": "share", "reuse_candidates": 0, "reuse_k": 0},
         # the exchange reads textures only (llvmpipe's helper invocations load no SSBO)
         {"reuse_res": "share", "reuse_candidates": 32, "reuse_k": 0, "reuse_target": "full"},

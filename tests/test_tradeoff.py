@@ -26,7 +26,8 @@ def test_full_grid_is_the_issue_grid():
     assert len(stb) == 3 * 5 * 2 and all(u.accumulations == (1, 4, 16) for u in stb)
     reuse = [u for u in units if u.options.get("reuse")]
     assert [u.options["K"] for u in reuse] == [4, 8, 16, 32, 64]
-    assert all(u.options["N"] == 4 and u.options["weight_cap"] == 8.0 for u in reuse)
+    assert all("N" not in u.options and u.options["weight_cap"] == 8.0 for u in reuse)
+    assert all(u.options["reuse"] is False for u in stb)  # the talk's N x K grid
     assert all(u.options["reuse_temporal"] == "off" for u in reuse)  # as --accumulate
     assert {(u.options["N"], u.options["K"]) for u in stb} == {
         (n, k) for n in (1, 2, 4) for k in (4, 8, 16, 32, 64)
@@ -142,10 +143,11 @@ def test_cli_quick_grid(scene_file, tmp_path):
         assert float(by[exact]["relmse"]) <= 1e-4
         assert float(by[exact]["flip"]) < 1e-3
     assert "stb N1 K8 cap A1" in by and "stb N4 K32 nocap A4" in by
-    # reservoir reuse (issue 31): its rows are there, told apart by the reuse column
-    reuse = by["stb N4 K32 cap reuse A1"]
+    # STB's default, the reservoir reuse (issue 31): its rows are there, told apart by the
+    # reuse column from the talk's grid
+    reuse = by["stb reuse K32 cap A1"]
     assert reuse["reuse"] == "1" and by["stb N4 K32 cap A1"]["reuse"] == "0"
-    assert float(reuse["hdr_flip"]) > 0.0 and float(by["stb N4 K32 cap reuse A4"]["frame_ms"]) > 0
+    assert float(reuse["hdr_flip"]) > 0.0 and float(by["stb reuse K32 cap A4"]["frame_ms"]) > 0
     # what a person sees: the exact methods show no structure or FLIP; noisy stb does
     assert float(by["reference"]["structure"]) == 0.0
     assert float(by["reference"]["hdr_flip"]) == 0.0
@@ -242,22 +244,22 @@ def test_cli_moving_camera_scenario(tmp_path):
         "stb N4 taa",
         "stb N4 ris off",
         "stb N4 ris taa",
-        "stb N4 reuse off",
-        "stb N4 reuse taa",
+        "stb reuse off",
+        "stb reuse taa",
         "tiled",
     ]
     assert float(by["reference"]["hdr_flip_median"]) == 0.0
     assert float(by["reference"]["instability"]) == pytest.approx(1.0)
     assert float(by["tiled"]["hdr_flip_median"]) < 1e-3  # exact, frame by frame
-    for n in ("1", "4", "4 ris", "4 reuse"):
-        raw, taa = by[f"stb N{n} off"], by[f"stb N{n} taa"]
+    for n in ("N1", "N4", "N4 ris", "reuse"):
+        raw, taa = by[f"stb {n} off"], by[f"stb {n} taa"]
         assert float(raw["hdr_flip_median"]) > 0.0
         assert float(taa["instability"]) < float(raw["instability"])
         assert float(taa["temporal_ms"]) > 0.0
-        if n != "4 reuse":  # at 64x36 taa's blur costs the reuse more than it gains
+        if n != "reuse":  # at 64x36 taa's blur costs the reuse more than it gains
             assert float(taa["hdr_flip_median"]) < float(raw["hdr_flip_median"])
-    # reuse: one raw frame closer and steadier than the same N without it (0.24 / 0.32)
-    reuse, plain = by["stb N4 reuse off"], by["stb N4 off"]
+    # the default, the reuse: one raw frame closer and steadier than the talk's N = 4
+    reuse, plain = by["stb reuse off"], by["stb N4 off"]
     assert float(reuse["hdr_flip_median"]) < 0.9 * float(plain["hdr_flip_median"])
     assert float(reuse["instability"]) < float(plain["instability"])
     md = (out / "moving.md").read_text()

@@ -2,8 +2,8 @@
 
 Runs a grid of configurations on one static view (camera, time fixed):
 
-* ``stb``: N in {1, 2, 4} x K in {4, 8, 16, 32, 64} x weight cap on (8) / off, and
-  with reservoir reuse (``-o reuse=on``, N = 4, cap on) at every K, each
+* ``stb``: the talk's pipeline (``-o reuse=off``), N in {1, 2, 4} x K in {4, 8, 16, 32,
+  64} x weight cap on (8) / off, and the default, reservoir reuse (cap on), at every K, each
   rendered as one sequence of frames (distinct seeds) from which accumulations of
   A in {1, 4, 16} frames are formed as sliding means (what a display accumulating A
   frames shows each frame);

@@ -22,11 +22,12 @@ STB_N = (1, 2, 4)
 STB_K = (4, 8, 16, 32, 64)
 ACCUMULATE = (1, 4, 16)
 STB_CAP = 8.0
-#: STB with reservoir reuse (issue 31): N = 4 candidates per pixel, the weight cap on, at
-#: every K of the grid (quick: the largest). The temporal reuse is off as under
-#: ``--accumulate`` (``reuse_temporal=auto``): the grid's accumulations average
-#: independent frames.
-STB_REUSE = {"N": 4, "reuse": True, "reuse_temporal": "off"}
+#: STB's default, the reservoir reuse (issue 31: each pixel resamples its big tile's K
+#: reservoirs, shared over the 2x2 quad), the weight cap on, at every K of the grid
+#: (quick: the largest). The temporal reuse is off as under ``--accumulate``
+#: (``reuse_temporal=auto``): the grid's accumulations average independent frames. The
+#: N x K grid is the talk's pipeline (``-o reuse=off``).
+STB_REUSE = {"reuse": True, "reuse_temporal": "off"}
 TILE_CAPS = (16, 64, None)
 QUICK = {"N": (1, 4), "K": (8, 32), "A": (1, 4), "tile_caps": (16, None)}
 
@@ -44,8 +45,9 @@ class Unit:
         if self.method == "stb":
             o = self.options
             cap = "cap" if o.get("weight_cap") else "nocap"
-            reuse = " reuse" if o.get("reuse") else ""
-            return f"stb N{o['N']} K{o['K']} {cap}{reuse} A{a}"
+            if o.get("reuse"):
+                return f"stb reuse K{o['K']} {cap} A{a}"
+            return f"stb N{o['N']} K{o['K']} {cap} A{a}"
         if self.method == "tiled":
             c = self.options.get("tile_cap")
             return f"tiled cap {c if c else 'none'}"
@@ -61,7 +63,8 @@ def grid_units(
     for n in ns:
         for k in ks:
             for wc in (STB_CAP, None):
-                units.append(Unit("stb", {"N": n, "K": k, "weight_cap": wc}, tuple(accs), True))
+                opts = {"reuse": False, "N": n, "K": k, "weight_cap": wc}
+                units.append(Unit("stb", opts, tuple(accs), True))
     for k in ks[-1:] if quick else ks:
         opts = {**STB_REUSE, "K": k, "weight_cap": STB_CAP}
         units.append(Unit("stb", opts, tuple(accs), True))

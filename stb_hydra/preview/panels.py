@@ -148,8 +148,10 @@ def _method_options(s: PreviewSession) -> None:
     """One widget per option of the current method (its schema: type, choices)."""
     opts: dict[str, Any] = s.options
     schema = getattr(s.engine.method, "options", None) if s.engine is not None else None
+    # the engine's resolved values: defaults that depend on other options included
+    resolved: dict[str, Any] = getattr(s.engine.method, "o", {}) if s.engine is not None else {}
     for opt in schema or ():
-        cur = opts.get(opt.name, opt.default)
+        cur = opts.get(opt.name, resolved.get(opt.name, opt.default))
         if opt.choices is not None:
             items = [str(c) for c in opt.choices]
             c = _combo(opt.name, str(cur), items)

@@ -12,7 +12,7 @@ in, values coerced: the CLI hands over strings or loosely parsed values) or rais
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +24,19 @@ _FALSE = ("0", "false", "no", "off")
 
 class OptionError(ValueError):
     """A lighting-method option is unknown, mistyped or out of range."""
+
+
+@dataclass(frozen=True)
+class Auto:
+    """A default that depends on other options: ``pick(options)`` once the given options
+    and the plain defaults are in (an Auto may read another Auto's value: they are
+    resolved in dependency order). ``text`` is what the help shows as the default."""
+
+    pick: Callable[[Mapping[str, Any]], Any]
+    text: str
+
+    def __repr__(self) -> str:
+        return self.text
 
 
 @dataclass(frozen=True)
@@ -133,17 +146,29 @@ class Schema:
         return Schema(*self, *other)
 
     def defaults(self) -> dict[str, Any]:
-        return {o.name: o.default for o in self}
+        """Every option's value when none is given (:class:`Auto` defaults resolved)."""
+        return self.validate("", {})
 
     def validate(self, method: str, given: Mapping[str, Any]) -> dict[str, Any]:
         unknown = sorted(set(given) - set(self.opts))
         if unknown:
             valid = ", ".join(self.opts) or "none"
             raise OptionError(f"unknown {method} option(s): {', '.join(unknown)} (valid: {valid})")
-        out = self.defaults()
+        out = {o.name: o.default for o in self if not isinstance(o.default, Auto)}
         for k, v in given.items():
             out[k] = self.opts[k].coerce(method, v)
-        return out
+        todo = [o for o in self if isinstance(o.default, Auto) and o.name not in given]
+        while todo:  # an Auto that reads one not yet resolved waits for the next round
+            left = []
+            for o in todo:
+                try:
+                    out[o.name] = o.coerce(method, o.default.pick(out))
+                except KeyError:
+                    left.append(o)
+            if len(left) == len(todo):
+                raise TypeError(f"{method} options: circular defaults {[o.name for o in left]}")
+            todo = left
+        return {name: out[name] for name in self.opts}
 
     def describe(self) -> str:
         return "\n".join(o.describe() for o in self)

@@ -39,7 +39,8 @@ the 8-bit terms use stochastic rounding; samples pack a 17-bit index and a
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, cast
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import moderngl
 import numpy as np
@@ -65,7 +66,7 @@ from ..shader_constants import (
 from ..tasks.base import Pass
 from .base import LightingMethod, Warn, program
 from .light_clusters import LightClusters, build_clusters
-from .options import Opt, OptionError, Schema
+from .options import Auto, Opt, OptionError, Schema
 from .quad_patterns import QuadPatterns, fixed_pattern, pattern_bank
 from .stb_reuse import ReuseStage, reuse_textures
 from .tiled import SSBOPool
@@ -80,6 +81,19 @@ TARGET_MODES = {"segment": 0, "uniform": 1, "shaped": 2}
 
 #: Slot block (columns, rows) per big tile for each allowed K.
 SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
+
+
+def _share_fits(o: Mapping[str, Any]) -> bool:
+    """``reuse_res=share`` is possible with the options given so far (the default of
+    ``reuse_res``): a given reuse_k > 0 asks for spatial reuse, a given reuse_target
+    other than tile or a shadow floor for what share cannot read (``check_options``)."""
+    return (
+        int(o["reuse_candidates"]) >= 4
+        and o.get("reuse_k", 0) == 0
+        and o.get("reuse_target", "tile") == "tile"
+        and o["reuse_shadow_floor"] >= 1.0
+    )
+
 
 OPTIONS = Schema(
     Opt(
@@ -96,7 +110,21 @@ OPTIONS = Schema(
         range=(1, limits.SMALL_TILE_SAMPLES_MAX),
         doc="samples per small tile",
     ),
-    Opt("big_tile", int, limits.BIG_TILE_PX, choices=(16, 32, 64, 128, 256), doc="big tile, px"),
+    Opt(
+        "big_tile",
+        int,
+        Auto(
+            lambda o: (
+                limits.STB_REUSE_BIG_TILE_PX
+                if o["reuse"] and int(o["reuse_candidates"])
+                else limits.BIG_TILE_PX
+            ),
+            f"{limits.STB_REUSE_BIG_TILE_PX} with reuse's big-tile candidates, else "
+            f"{limits.BIG_TILE_PX}",
+        ),
+        choices=(16, 32, 64, 128, 256),
+        doc="big tile, px",
+    ),
     Opt(
         "small_tile",
         int,
@@ -159,10 +187,11 @@ OPTIONS = Schema(
     Opt(
         "reuse",
         bool,
-        False,
-        doc="per-pixel reservoirs resampled from the small tile's samples, reused over "
-        "frames and neighbours (ReSTIR-style, issue 31; replaces the term and lighting "
-        "passes, see lighting/stb_reuse.py)",
+        True,
+        doc="per-pixel reservoirs resampled from the big tile's reservoirs (or the small "
+        "tile's samples), shared in each 2x2 quad or reused over frames and neighbours "
+        "(ReSTIR-style, issue 31; replaces the small-tile, term and lighting passes, see "
+        "lighting/stb_reuse.py); off: the talk's pipeline",
     ),
     Opt(
         "reuse_temporal",
@@ -175,7 +204,7 @@ OPTIONS = Schema(
     Opt(
         "reuse_k",
         int,
-        4,
+        Auto(lambda o: 0 if o["reuse_res"] == "share" else 4, "0 with reuse_res=share, else 4"),
         range=(0, limits.STB_REUSE_K_MAX),
         doc="reuse: spatial neighbours per pixel",
     ),
@@ -199,7 +228,7 @@ OPTIONS = Schema(
     Opt(
         "reuse_candidates",
         int,
-        0,
+        Auto(lambda o: o["K"], "K"),
         range=(0, max(limits.BIG_TILE_SLOTS_ALLOWED)),
         doc="reuse: initial candidates per pixel; 0: the small tile's N samples, C > 0: C "
         "of the big tile's K reservoirs (a random stratum, K / C apart) resampled with the "
@@ -208,7 +237,10 @@ OPTIONS = Schema(
     Opt(
         "reuse_target",
         str,
-        "full",
+        Auto(
+            lambda o: "full" if o["reuse_res"] == "quad" else "tile",
+            "tile (full with reuse_res=quad)",
+        ),
         choices=("full", "cheap", "tile"),
         doc="reuse: the initial resampling's per-pixel target with reuse_candidates > 0: "
         "full (area, cone, IES) or cheap (point light from two of its ten vec4s) or tile "
@@ -218,12 +250,16 @@ OPTIONS = Schema(
     Opt(
         "reuse_res",
         str,
-        "pixel",
+        Auto(
+            lambda o: "share" if _share_fits(o) else "pixel",
+            "share (pixel where share does not fit the other options)",
+        ),
         choices=("pixel", "quad", "share"),
         doc="reuse: initial reservoirs per pixel or per 2x2 quad (resampled at one of its "
         "pixels with a defensive floor, shaded at all four; needs reuse_candidates > 0); "
         "share: per pixel from C / 4 candidates each, the quad's four combined at every "
-        "pixel (needs reuse_candidates >= 4 and reuse_k = 0; no temporal reuse)",
+        "pixel (needs reuse_candidates >= 4, reuse_k = 0, reuse_target = tile and "
+        "reuse_shadow_floor = 1; no temporal reuse)",
     ),
     Opt(
         "reuse_shadow_floor",
@@ -258,7 +294,13 @@ class StbLighting(LightingMethod):
     name = "stb"
     options = OPTIONS
     debug_aovs: tuple[str, ...] = DEBUG_AOVS + REUSE_DEBUG_AOVS
-    debug_aov_requires = dict.fromkeys(REUSE_DEBUG_AOVS, "-o reuse=on")
+    debug_aov_requires: ClassVar[dict[str, str]] = {
+        **dict.fromkeys(REUSE_DEBUG_AOVS, "-o reuse=on"),
+        # the talk's pipeline's buffers: the reuse draws no terms, nor small tiles with
+        # the big tile's candidates (the default)
+        "smalltile": "-o reuse=off or -o reuse_candidates=0",
+        "shadowterms": "-o reuse=off",
+    }
 
     @classmethod
     def check_options(cls, o: dict) -> None:
