@@ -17,7 +17,7 @@ for side in before after; do
     ln -s "$out/$side/shaders" "$out/$side/stb_hydra/shaders"
   fi
 done
-for round in 1 2; do
+for round in ${ROUNDS:-1 2}; do
   for side in before after; do
     (cd "$out/$side" && PYTHONPATH="$out/$side" "$py" -m stb_hydra.apps.cli bench "$@" \
       --no-plot --quiet --json "$out/${side}_$round.json")
