@@ -62,9 +62,9 @@ uniform float u_lent_spread;   // a moving pixel's lent history: weight of its t
 // surface's motion cannot follow).
 uniform vec2 u_lobe;
 uniform vec4 u_prev_eye;  // previous camera: position (m), w 0; orthographic: backward axis, w 1
-// Compiled in only where the cap is on (the reuse's variant: temporal.py), so that STB
-// defaults' program is main's: llvmpipe runs an `if`'s body in every SIMD stamp, masked,
-// and a loop of 0 trips still cost ~5 % of the pass there.
+// Compiled in only where the cap is on (the reuse's variant: temporal.py), so that the
+// other methods' and the talk's STB program go without it: llvmpipe runs an `if`'s body
+// in every SIMD stamp, masked, and a loop of 0 trips still cost ~5 % of the pass there.
 #ifndef TAA_LOBE_CAP
 #define TAA_LOBE_CAP 0
 #endif

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from pxr import Sdf, Usd, UsdGeom, UsdLux
 from stagegen import USDA_HEADER, camera_usda
+from test_stb_reuse import SHARE_TILE
 
 from stb_hydra import limits
 from stb_hydra.renderer.engine import Engine
@@ -447,17 +448,7 @@ def test_light_linked_to_one_quad_every_exact_method(renders, method):
 #: each pixel's target ranks them; the slot target reads the link mask from a texture).
 STB_PIPELINES = [
     pytest.param({"reuse": False, "N": 1}, id="talk"),
-    pytest.param(
-        {
-            "reuse": True,
-            "big_tile": 16,
-            "reuse_candidates": 64,
-            "reuse_k": 0,
-            "reuse_res": "share",
-            "reuse_target": "tile",
-        },
-        id="share",
-    ),
+    pytest.param(SHARE_TILE, id="share"),
 ]
 
 

@@ -251,8 +251,9 @@ def test_reuse_off_is_the_talks_pipeline(gl_ctx, many_lights):
     spelled = stb_hydra.render(stage, **kw, reuse=False, big_tile=128, N=1, K=64)
     assert np.array_equal(talk, spelled)
     assert not np.array_equal(talk, stb_hydra.render(stage, **kw))
-    default = SHARE_TILE | {"N": 1, "big_tile": 16, "K": 64}
-    assert np.array_equal(stb_hydra.render(stage, **kw), stb_hydra.render(stage, **kw, **default))
+    assert np.array_equal(
+        stb_hydra.render(stage, **kw), stb_hydra.render(stage, **kw, **SHARE_TILE)
+    )
 
 
 # --- history ----------------------------------------------------------------------------

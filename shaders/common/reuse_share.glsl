@@ -17,8 +17,8 @@
 // reuse_share_quad in uniform control flow, and compute its values from textures only:
 // llvmpipe loads nothing from a storage buffer in a helper invocation, and splits the
 // full-screen triangle in two, so the quads along that seam hold helpers (the slot
-// target reads textures, links included: reuse_slot_linked; stb.py refuses the light-
-// buffer targets and the shadow gather with share).
+// target reads textures, links included: u_slot_link; stb.py refuses the light-buffer
+// targets and the shadow gather with share).
 #ifndef STB_REUSE_SHARE_GLSL
 #define STB_REUSE_SHARE_GLSL
 #ifndef STB_REUSE_SLOT_TARGET
@@ -69,7 +69,6 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
     float yf = has ? float(reuse_sel_texel.y * 4096 + reuse_sel_texel.x) : -1.0;
     vec3 e[4];
     share_all(vec3(yf, has ? r.W * r.p : 0.0, has ? r.p : 0.0), left, top, e[0], e[1], e[2], e[3]);
-    float ys[4] = float[4](e[0].x, e[1].x, e[2].x, e[3].x);
     uint yi[4];
     vec4 P = vec4(0.0);  // this pixel's target of each slot's light
     for (int k = 0; k < 4; ++k) {
@@ -77,8 +76,8 @@ Reservoir reuse_share_quad(ivec2 px, bool ok, Surface s, uint group) {
         if (k == 0) {
             yi[k] = has ? r.y : LIM_EMPTY_LIGHT_INDEX;
             P[k] = has ? r.p : 0.0;
-        } else if (ok && ys[k] > -0.5) {
-            int code = int(ys[k] + 0.5);
+        } else if (ok && e[k].x > -0.5) {
+            int code = int(e[k].x + 0.5);
             ivec2 texel = ivec2(code % 4096, code / 4096);
             vec4 sh = texelFetch(u_slot_shape, texel, 0);
             if (sh.z > 0.0) {

@@ -84,9 +84,13 @@ SLOT_BLOCKS = {4: (2, 2), 8: (4, 2), 16: (4, 4), 32: (8, 4), 64: (8, 8)}
 
 
 def _share_fits(o: Mapping[str, Any]) -> bool:
-    """``reuse_res=share`` is possible with the options given so far (the default of
-    ``reuse_res``): a given reuse_k > 0 asks for spatial reuse, a given reuse_target
-    other than tile or a shadow floor for what share cannot read (``check_options``)."""
+    """``reuse_res=share`` is possible with these options: the default of ``reuse_res``
+    (reuse_k and reuse_target may not be resolved yet: a given reuse_k > 0 asks for
+    spatial reuse) and ``check_options``'s rule. Share has no spatial reuse, and its
+    quad exchange needs every invocation's values, helper invocations' too: the full and
+    cheap targets and the shadow gather read the light buffer, which Mesa's llvmpipe
+    does not load in helper invocations (a quad on its seam of the full-screen triangle
+    would lose picks: noise there)."""
     return (
         int(o["reuse_candidates"]) >= 4
         and o.get("reuse_k", 0) == 0
@@ -315,19 +319,10 @@ class StbLighting(LightingMethod):
             raise OptionError("stb option reuse_res=quad: needs reuse_candidates > 0")
         if o["reuse_target"] == "tile" and o["reuse_res"] == "quad":
             raise OptionError("stb option reuse_target=tile: not with reuse_res=quad")
-        if o["reuse_res"] == "share" and (c < 4 or int(o["reuse_k"]) != 0):
+        if o["reuse_res"] == "share" and not _share_fits(o):
             raise OptionError(
-                "stb option reuse_res=share: needs reuse_candidates >= 4 and reuse_k=0"
-            )
-        if o["reuse_res"] == "share" and (
-            o["reuse_target"] != "tile" or o["reuse_shadow_floor"] < 1
-        ):
-            # The quad's exchange needs every invocation's values, helper invocations'
-            # too; the full and cheap targets and the shadow gather read the light
-            # buffer, which Mesa's llvmpipe does not load in helper invocations (a quad
-            # on its seam of the full-screen triangle would lose picks: noise there).
-            raise OptionError(
-                "stb option reuse_res=share: needs reuse_target=tile and reuse_shadow_floor=1"
+                "stb option reuse_res=share: needs reuse_candidates >= 4, reuse_k=0, "
+                "reuse_target=tile and reuse_shadow_floor=1"
             )
         cap = o["weight_cap"]
         o["weight_cap"] = 0.0 if cap is None or cap <= 0 else float(cap)
