@@ -11,6 +11,13 @@
 // tile sums its K candidates' estimates). Cost per tile ~ n / (G F) super scores + K x
 // (F cluster scores + G light targets), instead of n light targets.
 //
+// In-cluster pick (`-o cluster_pick`): by the lights' own targets (above; G target
+// evaluations per slot), or, with STB_CLUSTER_PICK_FLUX, by their flux alone from a
+// CDF built on the CPU (a binary search, then one target evaluation of the pick: a
+// light whose target is 0 cannot reach the region and gives an empty slot), p(l |
+// cluster) = flux(l) / flux(cluster). The reuse's per-pixel resampling shapes the
+// candidates anyway; the flux pick costs a few reads instead of G targets.
+//
 // Unbiased: a (super-)cluster scores 0 only when the region sphere lies beyond every
 // light's range (its position box grown by its largest range), where every one of its
 // lights' shaped target is 0 too; a light that can reach the region has its cluster
@@ -39,6 +46,13 @@ layout(std430, binding = SSBO_STB_CLUSTER_LIGHTS) readonly buffer ClusterLights 
 layout(std430, binding = SSBO_STB_CLUSTER_RECORDS) readonly buffer ClusterRecords {
     Light cluster_records[];
 };
+#ifdef STB_CLUSTER_PICK_FLUX
+// Per clustered light (Morton order): its cluster's flux CDF, inclusive (the cluster's
+// last light holds 1; a cluster without flux: uniform).
+layout(std430, binding = SSBO_STB_CLUSTER_CDF) readonly buffer ClusterCdf {
+    float cluster_cdf[];
+};
+#endif
 uniform ivec2 u_block;          // slot block per big tile (K = x * y)
 uniform int u_clusters;         // cluster count
 uniform int u_supers;           // super-cluster count (<= LIM_BIG_TILE_SUPERS_MAX)
@@ -148,8 +162,20 @@ void main() {
     // 4. One light of the cluster, by its own target (one-sample WRS).
     int first = ci * G;
     int last = min(first + G, n);
-    float sum_t = 0.0, sel_t = 0.0;
+    float sel_t = 0.0, p_light = 0.0;
     uint sel = LIM_EMPTY_LIGHT_INDEX;
+#ifdef STB_CLUSTER_PICK_FLUX
+    float ul = rng_float(rng);
+    int a = first, b = last - 1;  // the first light whose CDF exceeds ul
+    while (a < b) {
+        int mid = (a + b) >> 1;
+        if (cluster_cdf[mid] > ul) b = mid; else a = mid + 1;
+    }
+    p_light = cluster_cdf[a] - (a > first ? cluster_cdf[a - 1] : 0.0);
+    sel_t = target_light(cluster_records[a], A, B, C, R);
+    if (sel_t > 0.0) sel = cluster_lights[a];
+#else
+    float sum_t = 0.0;
     for (int k = first; k < last; ++k) {
         float t = target_light(cluster_records[k], A, B, C, R);
         sum_t += t;
@@ -158,8 +184,10 @@ void main() {
             sel_t = t;
         }
     }
+    p_light = sel_t / max(sum_t, 1e-38);
+#endif
     float W = 0.0;
-    float p = p_super * p_cluster * (sel_t / max(sum_t, 1e-38));
+    float p = p_super * p_cluster * p_light;
     if (sel_t > 0.0 && p > 0.0) {
         W = 1.0 / (float(STB_K) * p);
         if (u_weight_cap > 0.0) W = min(W, u_weight_cap * float(n) / float(STB_K));

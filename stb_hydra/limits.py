@@ -108,6 +108,15 @@ BIG_TILE_PX = 128
 #: pixel resamples its big tile's K reservoirs itself, so a small big tile (K candidates
 #: fit to 16 x 16 px) is what its quality rests on (docs/STB_NOTES.md, reuse5).
 STB_REUSE_BIG_TILE_PX = 16
+#: ... which the reuse's default (``-o big_tile=0``) picks per frame by its light count,
+#: so that the big-tile pass keeps a fixed cost (issue 31's 50 -> 5,000 lights row): the
+#: smallest of these tiles whose streaming pass evaluates at most
+#: STB_REUSE_STREAM_TARGETS_PER_PX light targets per pixel (n / px^2: 16 px up to 512
+#: lights, 32 px up to 2,048), else the largest drawing from light clusters with the
+#: flux pick inside a cluster (``-o cluster_pick=flux``: one target per slot).
+#: Measured in docs/STB_NOTES.md "(fixed cost, issue 31)".
+STB_REUSE_BIG_TILES_PX = (16, 32)
+STB_REUSE_STREAM_TARGETS_PER_PX = 2.0
 SMALL_TILE_PX = 16
 QUAD_PX = 2
 #: Big-tile reservoir slots K: 16 in the talk; 4..64 for the trade-off study. Default 64

@@ -144,7 +144,7 @@ def test_bigtile_view_matches_the_reservoir_texture(stb_run):
     res, _frame, eng, tex = stb_run
     K = eng.method.o["K"]
     bw, bh = SLOT_BLOCKS[K]
-    bt = eng.method.o["big_tile"]
+    bt = eng.method.big_px  # the last frame's
     raw = tex["stb_bigtile"][..., 0]  # (rows, cols) GL bottom-up
     idx, wgt = decode_samples(raw)
     gy, gx = np.mgrid[0:H, 0:W]

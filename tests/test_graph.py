@@ -300,10 +300,12 @@ def test_option_defaults_may_follow_other_options():
     d = v()
     assert (d["reuse"], d["big_tile"], d["reuse_candidates"], d["reuse_res"]) == (
         True,
-        limits.STB_REUSE_BIG_TILE_PX,
+        0,  # per frame, by the light count (StbLighting.frame_tiling)
         d["K"],
         "share",
     )
+    assert d["cluster_pick"] == "flux"
+    assert v(big_tile=16)["cluster_pick"] == v(reuse=False)["cluster_pick"] == "target"
     assert (d["reuse_k"], d["reuse_target"]) == (0, "tile")
     assert v(reuse=False)["big_tile"] == limits.BIG_TILE_PX
     assert v(reuse_candidates=0)["big_tile"] == limits.BIG_TILE_PX

@@ -4,12 +4,17 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from stagegen import usda_stage
 from test_stb import lights_scene, read_u32, stb_engine
 
 from stb_hydra import limits
-from stb_hydra.renderer.lighting.light_clusters import build_clusters, morton_order
-from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, decode_samples
+from stb_hydra.renderer.lighting.light_clusters import (
+    build_clusters,
+    cluster_cdf,
+    morton_order,
+)
+from stb_hydra.renderer.lighting.stb import SLOT_BLOCKS, StbLighting, decode_samples
 from stb_hydra.renderer.records import InViewLights
 
 
@@ -52,14 +57,51 @@ def test_clusters_of_a_ragged_tail_and_negative_flux():
     assert morton_order(np.zeros((0, 3))).size == 0
 
 
-def test_auto_uses_clusters_above_the_threshold_and_every_slot_is_valid(gl_ctx):
+def test_cluster_cdf_per_run():
+    """The flux pick's CDF: inclusive within each run of ``group`` (ragged tail too),
+    the run's last entry exactly 1, a run without flux uniform."""
+    f = np.array([1.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 5.0, 0.0, 5.0])
+    np.testing.assert_array_equal(
+        cluster_cdf(f, 4), [0.25, 0.5, 1.0, 1.0, 0.25, 0.5, 0.75, 1.0, 0.5, 0.5, 1.0]
+    )
+    rng = np.random.default_rng(0)
+    g = rng.uniform(0.0, 1e4, 1000)
+    cdf = cluster_cdf(g, 16)
+    ends = np.minimum(np.arange(16, 1001, 16), 1000) - 1
+    assert np.all(cdf[ends] == 1.0) and np.all(np.diff(cdf.reshape(-1)[:992].reshape(62, 16)) >= 0)
+    np.testing.assert_allclose(np.diff(cdf[:16], prepend=0.0), g[:16] / g[:16].sum(), atol=1e-6)
+    assert build_clusters(np.zeros((0, 3)), np.zeros(0), np.zeros(0)).cdf.size == 0
+
+
+def test_frame_tiling_keeps_the_big_tile_pass_bounded():
+    """``big_tile=0`` (the reuse's default): 16 px tiles stream up to 2 x 16^2 lights,
+    32 px up to 2 x 32^2, then 32 px tiles draw from clusters; ``bigtile`` forces the
+    mode; a given big tile keeps the clusters' threshold of K x 64 lights."""
+    m = StbLighting(None)
+    assert m.o["big_tile"] == 0 and m.o["cluster_pick"] == "flux"
+    got = [m.frame_tiling(n) for n in (1, 512, 513, 2048, 2049, 5000, 100000)]
+    assert got == [(16, False), (16, False), (32, False), (32, False)] + [(32, True)] * 3
+    assert limits.STB_REUSE_BIG_TILES_PX == (16, 32)
+    assert StbLighting(None, bigtile="clusters").frame_tiling(50) == (32, True)
+    assert StbLighting(None, bigtile="stream").frame_tiling(5000) == (32, False)
+    fixed = StbLighting(None, big_tile=16)
+    assert fixed.frame_tiling(5000) == (16, True) and fixed.frame_tiling(4096) == (16, False)
+    assert StbLighting(None, reuse=False).frame_tiling(5000) == (128, True)
+
+
+@pytest.mark.parametrize("pick", ["target", "flux"])
+def test_auto_uses_clusters_above_the_threshold_and_every_slot_is_valid(gl_ctx, pick):
     """K = 4: above 4 x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights ``auto`` draws from
     clusters; every slot then holds an in-view light with W = 1 / (K p) > 0, and the
     weights' mean over slots estimates n / K (E[W] = sum_l p_l / (K p_l) = n / K for
-    every light the target reaches -- all of them here, ranges cover the scene)."""
+    every light the target reaches -- all of them here, ranges cover the scene). With
+    ``cluster_pick=flux`` p_l is p(cluster) x flux_l / flux_cluster: a pick whose stored
+    p differs from how it was drawn moves the mean (the lights' intensities spread 10x)."""
     n = 4 * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT + 40
     stage = usda_stage(lights_scene(n, cube=False))
-    eng = stb_engine(stage, 128, 72, K=4, N=1, weight_cap=None, target="segment")
+    eng = stb_engine(
+        stage, 128, 72, K=4, N=1, weight_cap=None, target="segment", cluster_pick=pick
+    )
     try:
         ws = []
         for _ in range(24):

@@ -46,6 +46,9 @@ SSBO_STB_CLUSTERS = 5
 SSBO_STB_CLUSTER_LIGHTS = 6
 #: STB's FoV light records in the clusters' Morton order (contiguous per cluster).
 SSBO_STB_CLUSTER_RECORDS = 7
+#: STB's light clusters, ``-o cluster_pick=flux``: each clustered light's inclusive flux
+#: CDF within its cluster (float, Morton order).
+SSBO_STB_CLUSTER_CDF = 15
 #: Light linking (``LightBuffer.link_ssbo``, common/links.glsl): the distant lights'
 #: masks, ambient per link group, then one mask per in-view light (light-buffer order).
 SSBO_LIGHT_LINKS = 8
@@ -259,6 +262,7 @@ def _glsl_constants() -> dict[str, str]:
         "SSBO_STB_CLUSTERS": str(SSBO_STB_CLUSTERS),
         "SSBO_STB_CLUSTER_LIGHTS": str(SSBO_STB_CLUSTER_LIGHTS),
         "SSBO_STB_CLUSTER_RECORDS": str(SSBO_STB_CLUSTER_RECORDS),
+        "SSBO_STB_CLUSTER_CDF": str(SSBO_STB_CLUSTER_CDF),
         "SSBO_LIGHT_LINKS": str(SSBO_LIGHT_LINKS),
         "SSBO_BAKE_LIGHTS": str(SSBO_BAKE_LIGHTS),
         "SSBO_STB_REUSE_REMAP": str(SSBO_STB_REUSE_REMAP),

@@ -51,11 +51,15 @@ class LightClusters:
     """``order``: FoV light index per clustered position (uint32, Morton order);
     ``clusters`` and ``supers``: (count, 8) float32 -- min xyz, flux sum, max xyz, max
     range. Cluster c holds ``order[c * G : (c + 1) * G]``, super-cluster s the clusters
-    ``s * F ... (s + 1) * F - 1``."""
+    ``s * F ... (s + 1) * F - 1``. ``cdf``: per clustered light, the inclusive CDF of
+    its cluster's flux (float32; each cluster's last light holds exactly 1, a cluster
+    without flux is uniform): ``-o cluster_pick=flux`` draws a light of a cluster from
+    it."""
 
     order: np.ndarray
     clusters: np.ndarray
     supers: np.ndarray
+    cdf: np.ndarray
 
     @property
     def count(self) -> int:
@@ -64,6 +68,23 @@ class LightClusters:
     def records(self) -> np.ndarray:
         """The GPU array: super-clusters first, then clusters."""
         return np.ascontiguousarray(np.concatenate([self.supers, self.clusters]))
+
+
+def cluster_cdf(flux: np.ndarray, group: int) -> np.ndarray:
+    """Inclusive CDF of ``flux`` (n,) >= 0 within each run of ``group`` (the last run
+    may be short), float32: each run's last entry is exactly 1, a run summing to 0 is
+    uniform."""
+    n = len(flux)
+    starts = np.arange(0, n, group)
+    run = np.repeat(np.arange(len(starts)), group)[:n]
+    size = np.minimum(group, n - starts)[run].astype(np.float64)
+    pos = (np.arange(n) - starts[run] + 1).astype(np.float64)
+    total = np.add.reduceat(flux, starts)[run] if n else np.zeros(0)
+    prefix = np.cumsum(flux) - (np.cumsum(flux)[starts] - flux[starts])[run] if n else flux
+    cdf = np.where(total > 0, prefix / np.where(total > 0, total, 1.0), pos / size)
+    cdf = np.minimum(cdf, 1.0)
+    cdf[np.minimum(starts + group, n) - 1] = 1.0
+    return cdf.astype(np.float32)
 
 
 def _merge(rec: np.ndarray, size: int) -> np.ndarray:
@@ -93,7 +114,7 @@ def build_clusters(
     order = morton_order(positions)
     if n == 0:
         empty = np.zeros((0, 8), np.float32)
-        return LightClusters(np.zeros(0, np.uint32), empty, empty)
+        return LightClusters(np.zeros(0, np.uint32), empty, empty, np.zeros(0, np.float32))
     # One record per light (a point box), then the two levels of merged runs.
     lights = np.empty((n, 8), dtype=np.float64)
     lights[:, 0:3] = lights[:, 4:7] = np.asarray(positions, dtype=np.float64)[order]
@@ -101,4 +122,9 @@ def build_clusters(
     lights[:, 7] = np.asarray(ranges, dtype=np.float64)[order]
     cl = _merge(lights, group)
     sup = _merge(cl, fanout)
-    return LightClusters(order.astype(np.uint32), cl.astype(np.float32), sup.astype(np.float32))
+    return LightClusters(
+        order.astype(np.uint32),
+        cl.astype(np.float32),
+        sup.astype(np.float32),
+        cluster_cdf(lights[:, 3], group),
+    )

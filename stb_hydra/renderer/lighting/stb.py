@@ -58,6 +58,7 @@ from ..shader_constants import (
     INTERLEAVE_QUADS_PER_SIDE,
     QUAD_FWD_Y_SHIFT,
     QUAD_LUT_SLOT_SHIFT,
+    SSBO_STB_CLUSTER_CDF,
     SSBO_STB_CLUSTER_LIGHTS,
     SSBO_STB_CLUSTER_RECORDS,
     SSBO_STB_CLUSTERS,
@@ -118,16 +119,13 @@ OPTIONS = Schema(
         "big_tile",
         int,
         Auto(
-            lambda o: (
-                limits.STB_REUSE_BIG_TILE_PX
-                if o["reuse"] and int(o["reuse_candidates"])
-                else limits.BIG_TILE_PX
-            ),
-            f"{limits.STB_REUSE_BIG_TILE_PX} with reuse's big-tile candidates, else "
-            f"{limits.BIG_TILE_PX}",
+            lambda o: 0 if o["reuse"] and int(o["reuse_candidates"]) else limits.BIG_TILE_PX,
+            f"0 with reuse's big-tile candidates, else {limits.BIG_TILE_PX}",
         ),
-        choices=(16, 32, 64, 128, 256),
-        doc="big tile, px",
+        choices=(0, 16, 32, 64, 128, 256),
+        doc="big tile, px; 0: per frame by the light count (fixed cost): 16 px streaming up "
+        "to 512 lights, 32 px up to 2,048, 32 px from light clusters above "
+        "(STB_REUSE_BIG_TILES_PX, STB_REUSE_STREAM_TARGETS_PER_PX)",
     ),
     Opt(
         "small_tile",
@@ -186,7 +184,19 @@ OPTIONS = Schema(
         choices=("auto", "stream", "clusters"),
         doc="big-tile candidates: every slot streams n/K lights (exact WRS), or draws from "
         "a two-level light hierarchy (cost ~ n/256 + 32K per tile); auto: clusters above "
-        "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights",
+        "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights (with big_tile=0: above "
+        "STB_REUSE_STREAM_TARGETS_PER_PX x 32^2)",
+    ),
+    Opt(
+        "cluster_pick",
+        str,
+        Auto(
+            lambda o: "flux" if int(o["big_tile"]) == 0 else "target",
+            "flux with big_tile=0, else target",
+        ),
+        choices=("target", "flux"),
+        doc="light clusters: a cluster's light drawn by the lights' own targets (16 per "
+        "slot) or by their flux (one target per slot)",
     ),
     Opt(
         "reuse",
@@ -310,7 +320,7 @@ class StbLighting(LightingMethod):
     def check_options(cls, o: dict) -> None:
         if o["interleave"] and o["small_tile"] != 16:
             raise OptionError("stb option small_tile: interleaving needs 16 px small tiles")
-        if o["small_tile"] > o["big_tile"]:
+        if o["small_tile"] > (o["big_tile"] or limits.STB_REUSE_BIG_TILES_PX[0]):
             raise OptionError("stb option small_tile: must be <= big_tile")
         c = int(o["reuse_candidates"])
         if c and (c > int(o["K"]) or int(o["K"]) % c):
@@ -331,7 +341,10 @@ class StbLighting(LightingMethod):
         self, delegate: GLRenderDelegate | None, warn: Warn | None = None, **options: Any
     ) -> None:
         super().__init__(delegate, warn, **options)
-        self.hiz_level = int(math.log2(int(self.o["big_tile"])))
+        #: This frame's big tile (px) and whether it draws from light clusters
+        #: (``frame_tiling``; fixed by the options unless big_tile=0).
+        self.big_px = int(self.o["big_tile"]) or limits.STB_REUSE_BIG_TILES_PX[0]
+        self.hiz_level = int(math.log2(self.big_px))
         self._luts: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.pattern_offset = (0, 0)
         self.pattern_layer = 0
@@ -360,7 +373,10 @@ class StbLighting(LightingMethod):
         )
 
     def reads(self) -> tuple[Resource, ...]:
-        extra = (Tex("g_motion", "rg16f"),) if self.o["reuse"] else ()
+        extra: tuple[Resource, ...] = (Tex("g_motion", "rg16f"),) if self.o["reuse"] else ()
+        if not int(self.o["big_tile"]):  # every depth level a frame's big tile may take
+            sizes = limits.STB_REUSE_BIG_TILES_PX[1:]
+            extra += tuple(Tex(f"hiz{int(math.log2(px))}", "rg32f") for px in sizes)
         return (*super().reads(), *extra)
 
     def debug_passes(self) -> list[Pass]:
@@ -390,7 +406,7 @@ class StbLighting(LightingMethod):
     def grid(self, width: int, height: int) -> dict[str, tuple[int, int]]:
         """Texture sizes of this frame's STB buffers."""
         o = self.o
-        bt = int(o["big_tile"])
+        bt = self.big_px
         bw, bh = SLOT_BLOCKS[int(o["K"])]
         big = (math.ceil(width / bt), math.ceil(height / bt))
         if o["interleave"]:
@@ -423,7 +439,7 @@ class StbLighting(LightingMethod):
     def _common_uniforms(self, frame: FrameContext, prog: moderngl.Program) -> None:
         o = self.o
         set_uniform(prog, "u_block", SLOT_BLOCKS[int(o["K"])])
-        set_uniform(prog, "u_big_px", int(o["big_tile"]))
+        set_uniform(prog, "u_big_px", self.big_px)
         set_uniform(prog, "u_pattern_offset", self.pattern_offset)
         set_uniform(prog, "u_pattern_layer", self.pattern_layer)
         set_uniform(prog, "u_interleave", 1 if o["interleave"] else 0)
@@ -468,14 +484,16 @@ class StbLighting(LightingMethod):
         ctx = frame.ctx
         bufs = frame.buffers
         w, h = bufs.size
+        self.big_px, clusters = self.frame_tiling(frame.light_count)
+        frame.stats["stb_big_tile_px"] = self.big_px
         g = self.grid(w, h)
         defines = self.defines(frame)
         lut_inv, lut_fwd = self._lut_textures(ctx)
-        hiz = bufs.textures[f"hiz{self.hiz_level}"]
+        hiz = bufs.textures[f"hiz{int(math.log2(self.big_px))}"]
 
         # 1. big tiles
         big = bufs.texture("stb_bigtile", 1, "u4", size=g["bigtile"])
-        if self.use_clusters(frame.light_count):
+        if clusters:
             self._bigtile_clusters(frame, defines, big, hiz, g["big_tiles"])
         else:
             prog = program(frame, "stb_bigtile.frag", defines)
@@ -552,10 +570,25 @@ class StbLighting(LightingMethod):
 
     def use_clusters(self, n_lights: int) -> bool:
         """Whether this frame's big-tile pass draws from light clusters."""
+        return self.frame_tiling(n_lights)[1]
+
+    def frame_tiling(self, n_lights: int) -> tuple[int, bool]:
+        """This frame's big tile (px) and whether its big-tile pass draws from light
+        clusters. A given ``big_tile`` is kept; ``big_tile=0`` takes the smallest of
+        STB_REUSE_BIG_TILES_PX whose streaming pass evaluates at most
+        STB_REUSE_STREAM_TARGETS_PER_PX light targets per pixel (n / px^2), else the
+        largest with clusters: the pass's cost stays bounded whatever the light count."""
         mode = self.o["bigtile"]
+        px = int(self.o["big_tile"])
+        if not px:
+            sizes = limits.STB_REUSE_BIG_TILES_PX
+            fits = [s for s in sizes if n_lights <= limits.STB_REUSE_STREAM_TARGETS_PER_PX * s * s]
+            if mode == "clusters" or (mode == "auto" and not fits):
+                return sizes[-1], True
+            return (fits[0] if fits else sizes[-1]), False
         if mode != "auto":
-            return mode == "clusters"
-        return n_lights > int(self.o["K"]) * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT
+            return px, mode == "clusters"
+        return px, n_lights > int(self.o["K"]) * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT
 
     def light_clusters(self, frame: FrameContext) -> LightClusters:
         """The FoV lights' clusters, rebuilt only when the light table or the FoV set
@@ -572,6 +605,7 @@ class StbLighting(LightingMethod):
             pool = self._cluster_buffers
             pool.upload("records", self._clusters.records(), SSBO_STB_CLUSTERS)
             pool.upload("order", self._clusters.order, SSBO_STB_CLUSTER_LIGHTS)
+            pool.upload("cdf", self._clusters.cdf, SSBO_STB_CLUSTER_CDF)
             # The lights' own records in Morton order: a cluster reads one contiguous run.
             pool.upload(
                 "lights", pack_lights(t, rows[self._clusters.order]), SSBO_STB_CLUSTER_RECORDS
@@ -590,10 +624,12 @@ class StbLighting(LightingMethod):
         with frame.timings_scope("stb_clusters"):  # CPU: rebuilt only on change
             cl = self.light_clusters(frame)
         with frame.timings_scope("stb_bigtile"):
-            cs = shader_library(frame.ctx).compute("stb_bigtile_clusters.comp", defines)
             o = self.o
+            flux = o["cluster_pick"] == "flux"
+            cdefs = {**defines, "STB_CLUSTER_PICK_FLUX": True} if flux else defines
+            cs = shader_library(frame.ctx).compute("stb_bigtile_clusters.comp", cdefs)
             set_uniform(cs, "u_block", SLOT_BLOCKS[int(o["K"])])
-            set_uniform(cs, "u_big_px", int(o["big_tile"]))
+            set_uniform(cs, "u_big_px", self.big_px)
             set_uniform(cs, "u_weight_cap", float(o["weight_cap"]))
             set_uniform(cs, "u_target_mode", TARGET_MODES[o["target"]])
             set_uniform(cs, "u_clusters", cl.count)
@@ -604,6 +640,8 @@ class StbLighting(LightingMethod):
             bufs["records"].bind_to_storage_buffer(SSBO_STB_CLUSTERS)
             bufs["order"].bind_to_storage_buffer(SSBO_STB_CLUSTER_LIGHTS)
             bufs["lights"].bind_to_storage_buffer(SSBO_STB_CLUSTER_RECORDS)
+            if flux:
+                bufs["cdf"].bind_to_storage_buffer(SSBO_STB_CLUSTER_CDF)
             big.bind_to_image(IMAGE_UNIT_BIGTILE, read=False, write=True)
             cs.run(tiles[0], tiles[1], 1)
             frame.ctx.memory_barrier()

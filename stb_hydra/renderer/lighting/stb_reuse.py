@@ -32,6 +32,7 @@ scene's light count, like STB.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import moderngl
@@ -406,12 +407,13 @@ class ReuseStage:
         if method.light_links:
             texs += (bufs.texture(SLOT_LINK, 1, "u4", size=big.size),)
             names.append(SLOT_LINK)
-        grid = slot_grid(int(method.o["big_tile"]))
+        grid = slot_grid(method.big_px)
         prog = program(frame, "stb_reuse_slots.frag", dict(defines, STB_REUSE_SLOT_GRID=grid))
         method._common_uniforms(frame, prog)
         unit = method.bind_common(frame, prog)
         method._bind(frame, prog, unit, "u_bigtile", big)
-        method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", bufs.textures[f"hiz{method.hiz_level}"])
+        hiz = bufs.textures[f"hiz{int(math.log2(method.big_px))}"]
+        method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
         method._pass(frame, prog, names, big.size)
         return texs
 
