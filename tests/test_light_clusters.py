@@ -99,9 +99,7 @@ def test_auto_uses_clusters_above_the_threshold_and_every_slot_is_valid(gl_ctx, 
     p differs from how it was drawn moves the mean (the lights' intensities spread 10x)."""
     n = 4 * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT + 40
     stage = usda_stage(lights_scene(n, cube=False))
-    eng = stb_engine(
-        stage, 128, 72, K=4, N=1, weight_cap=None, target="segment", cluster_pick=pick
-    )
+    eng = stb_engine(stage, 128, 72, K=4, N=1, weight_cap=None, target="segment", cluster_pick=pick)
     try:
         ws = []
         for _ in range(24):
