@@ -114,7 +114,7 @@ STB_REUSE_BIG_TILE_PX = 16
 #: STB_REUSE_STREAM_TARGETS_PER_PX light targets per pixel (n / px^2: 16 px up to 512
 #: lights, 32 px up to 2,048), else the largest drawing from light clusters with the
 #: flux pick inside a cluster (``-o cluster_pick=flux``: one target per slot).
-#: Measured in docs/STB_NOTES.md "(fixed cost, issue 31)".
+#: Measured in docs/STB_NOTES.md "(fixed cost)".
 STB_REUSE_BIG_TILES_PX = (16, 32)
 STB_REUSE_STREAM_TARGETS_PER_PX = 2.0
 SMALL_TILE_PX = 16

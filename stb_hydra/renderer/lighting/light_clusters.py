@@ -75,16 +75,19 @@ def cluster_cdf(flux: np.ndarray, group: int) -> np.ndarray:
     may be short), float32: each run's last entry is exactly 1, a run summing to 0 is
     uniform."""
     n = len(flux)
-    starts = np.arange(0, n, group)
-    run = np.repeat(np.arange(len(starts)), group)[:n]
-    size = np.minimum(group, n - starts)[run].astype(np.float64)
-    pos = (np.arange(n) - starts[run] + 1).astype(np.float64)
-    total = np.add.reduceat(flux, starts)[run] if n else np.zeros(0)
-    prefix = np.cumsum(flux) - (np.cumsum(flux)[starts] - flux[starts])[run] if n else flux
-    cdf = np.where(total > 0, prefix / np.where(total > 0, total, 1.0), pos / size)
+    if n == 0:
+        return np.zeros(0, np.float32)
+    pad = -n % group
+    runs = np.concatenate([np.asarray(flux, np.float64), np.zeros(pad)]).reshape(-1, group)
+    size = np.full(len(runs), group)
+    size[-1] = group - pad
+    prefix = np.cumsum(runs, axis=1)
+    total = prefix[:, -1:]
+    uniform = np.arange(1, group + 1) / size[:, None]
+    cdf = np.where(total > 0, prefix / np.where(total > 0, total, 1.0), uniform)
     cdf = np.minimum(cdf, 1.0)
-    cdf[np.minimum(starts + group, n) - 1] = 1.0
-    return cdf.astype(np.float32)
+    cdf[np.arange(len(runs)), size - 1] = 1.0
+    return cdf.ravel()[:n].astype(np.float32)
 
 
 def _merge(rec: np.ndarray, size: int) -> np.ndarray:
