@@ -803,6 +803,14 @@ def test_reuse_candidate_options_are_checked():
         with pytest.raises(OptionError):
             StbLighting(None, reuse=True, **bad)
     StbLighting(None, reuse=True, reuse_candidates=16, reuse_res="quad").release()
+    # share has no temporal reuse: a given reuse_temporal=on is named, once, not silent
+    said: list[str] = []
+    StbLighting(None, warn=said.append, reuse_temporal="on").release()
+    assert len(said) == 1 and "reuse_temporal=on" in said[0] and "share" in said[0]
+    said.clear()
+    StbLighting(None, warn=said.append, reuse_temporal="on", reuse_res="pixel").release()
+    StbLighting(None, warn=said.append).release()
+    assert said == []
 
 
 def test_slot_grid_spacing():

@@ -354,6 +354,12 @@ class StbLighting(LightingMethod):
         self._cluster_buffers: SSBOPool | None = None
         #: Reservoir reuse (``-o reuse=on``) and its history.
         self.reuse = ReuseStage()
+        o = self.o
+        if o["reuse"] and o["reuse_res"] == "share" and o["reuse_temporal"] == "on":
+            self.warn(
+                "stb option reuse_temporal=on: ignored, reuse_res=share has no temporal "
+                "reuse (-o reuse_res=pixel has)"
+            )
         #: The views this instance draws: the reuse views need its reservoirs; under
         #: reuse no term pass runs, nor the small-tile pass with per-pixel candidates.
         self.debug_aovs = DEBUG_AOVS
