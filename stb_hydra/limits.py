@@ -136,16 +136,20 @@ SMALL_TILE_SAMPLES_DEFAULT = 1
 #: Light clusters of the big-tile pass for many lights (issue 16, ``-o bigtile``):
 #: FoV lights in Morton order, cut into clusters of BIG_TILE_CLUSTER_LIGHTS, and runs
 #: of BIG_TILE_CLUSTER_FANOUT clusters into super-clusters. A big tile scores every
-#: super-cluster once (shared by its K slots); each slot then scores the 16 clusters of
-#: the super-cluster it drew and streams the 16 lights of the cluster it drew. Cost per
-#: tile ~ n / 256 + K x 32 target evaluations instead of n (measured in
-#: docs/PERFORMANCE.md, 5,000 -> 50,000 lights: one level of 32-light clusters 1.97x,
-#: two levels 1.7-2.1x, two levels reading Morton-ordered light records 1.14x).
-BIG_TILE_CLUSTER_LIGHTS = 16
-BIG_TILE_CLUSTER_FANOUT = 16
-#: Most super-clusters (shared-memory CDF of one workgroup: 4 bytes each, 2 KiB):
+#: super-cluster once (shared by its K slots); each slot then scores the F clusters of
+#: the super-cluster it drew and picks one light of the G in the cluster it drew. Cost per
+#: tile ~ n / (G F) + K x F scores, plus K x G light targets with ``cluster_pick=target``
+#: or K with ``flux``. Issue 16 measured G = F = 16 (docs/PERFORMANCE.md, 5,000 -> 50,000
+#: lights: one level of 32-light clusters 1.97x, two levels 1.7-2.1x, two levels reading
+#: Morton-ordered light records 1.14x); issue 31's fixed cost took G = 4, F = 8: on the
+#: 5,000-light scene the reuse's 32 px flux-pick pass costs the same (14-16 vs 15-18 ms)
+#: and its 16-frame still is 10 % better (HDR-FLIP 0.188 vs 0.209; G = 2, F = 16: 0.184
+#: for 19-20 ms; G = 1, F = 32: 0.182 for 29 ms; docs/STB_NOTES.md "(fixed cost)").
+BIG_TILE_CLUSTER_LIGHTS = 4
+BIG_TILE_CLUSTER_FANOUT = 8
+#: Most super-clusters (shared-memory CDF of one workgroup: 4 bytes each, 16 KiB):
 #: MAX_FOV_LIGHTS / (BIG_TILE_CLUSTER_LIGHTS x BIG_TILE_CLUSTER_FANOUT), rounded up.
-BIG_TILE_SUPERS_MAX = 512
+BIG_TILE_SUPERS_MAX = 4096
 #: ``-o bigtile=auto`` uses the clusters above this many FoV lights per slot: below it,
 #: streaming n / K lights per slot costs about as much (and is exact WRS).
 BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT = 64

@@ -183,7 +183,7 @@ OPTIONS = Schema(
         "auto",
         choices=("auto", "stream", "clusters"),
         doc="big-tile candidates: every slot streams n/K lights (exact WRS), or draws from "
-        "a two-level light hierarchy (cost ~ n/256 + 32K per tile); auto: clusters above "
+        "a two-level light hierarchy (cost ~ n/32 + 12K per tile); auto: clusters above "
         "K x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights (with big_tile=0: above "
         "STB_REUSE_STREAM_TARGETS_PER_PX x 32^2)",
     ),
@@ -195,8 +195,8 @@ OPTIONS = Schema(
             "flux with big_tile=0, else target",
         ),
         choices=("target", "flux"),
-        doc="light clusters: a cluster's light drawn by the lights' own targets (16 per "
-        "slot) or by their flux (one target per slot)",
+        doc="light clusters: a cluster's light drawn by the lights' own targets "
+        "(BIG_TILE_CLUSTER_LIGHTS per slot) or by their flux (one target per slot)",
     ),
     Opt(
         "reuse",
