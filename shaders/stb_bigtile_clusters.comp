@@ -18,6 +18,11 @@
 // cluster) = flux(l) / flux(cluster). The reuse's per-pixel resampling shapes the
 // candidates anyway; the flux pick costs a few reads instead of G targets.
 //
+// Flat (u_flat, with the flux pick while the clusters fit the shared CDF,
+// limits.BIG_TILE_CLUSTERS_FLAT_MAX): step 1 scores every cluster instead of every
+// super-cluster and step 3 is skipped, p(l) = p(cluster) x flux(l) / flux(cluster); the
+// super level's coarse scores were most of what the hierarchy lost against streaming.
+//
 // Unbiased: a (super-)cluster scores 0 only when the region sphere lies beyond every
 // light's range (its position box grown by its largest range), where every one of its
 // lights' shaped target is 0 too; a light that can reach the region has its cluster
@@ -56,6 +61,8 @@ layout(std430, binding = SSBO_STB_CLUSTER_CDF) readonly buffer ClusterCdf {
 uniform ivec2 u_block;          // slot block per big tile (K = x * y)
 uniform int u_clusters;         // cluster count
 uniform int u_supers;           // super-cluster count (<= LIM_BIG_TILE_SUPERS_MAX)
+uniform int u_flat;             // 1: one level, the tile's CDF over every cluster
+                                // (u_clusters <= LIM_BIG_TILE_SUPERS_MAX; no super level)
 uniform float u_weight_cap;     // W <= cap x n / K; <= 0: unbiased (no cap)
 
 shared float s_cdf[LIM_BIG_TILE_SUPERS_MAX];  // inclusive prefix sums of the super scores
@@ -93,19 +100,23 @@ void main() {
     ivec2 tile = ivec2(gl_WorkGroupID.xy);
     int slot = int(gl_LocalInvocationID.x);
     int n = int(u_counts.x);
-    int ns = u_supers;
+    // Level 1: the super-clusters, or (u_flat) every cluster, record rec0 + entry.
+    int ns = u_flat != 0 ? u_clusters : u_supers;
+    int rec0 = u_flat != 0 ? u_supers : 0;
     const int G = LIM_BIG_TILE_CLUSTER_LIGHTS, F = LIM_BIG_TILE_CLUSTER_FANOUT;
     vec3 A, B, C;
     float R;
     tile_segment(tile, A, B, C, R);
 
-    // 1. Scores of all super-clusters, a contiguous run per invocation, as a CDF.
+    // 1. Scores of all super-clusters (or clusters), a contiguous run per invocation, as
+    // a CDF.
     int per = (ns + STB_K - 1) / STB_K;
     int s0 = min(slot * per, ns), s1 = min(s0 + per, ns);
+    int span = u_flat != 0 ? G : G * F;  // lights per entry
     float run = 0.0;
     for (int sc = s0; sc < s1; ++sc) {
-        float cnt = float(min(G * F, n - sc * G * F));
-        run += cluster_score(sc, cnt, A, B, C, R);
+        float cnt = float(min(span, n - sc * span));
+        run += cluster_score(rec0 + sc, cnt, A, B, C, R);
         s_cdf[sc] = run;
     }
     s_part[slot] = run;
@@ -135,29 +146,33 @@ void main() {
     int si = lo;
     float p_super = (s_cdf[si] - (si > 0 ? s_cdf[si - 1] : 0.0)) / total;
 
-    // 3. One of its clusters, by their scores.
-    int c_first = si * F;
-    int c_last = min(c_first + F, u_clusters);
-    float cs[LIM_BIG_TILE_CLUSTER_FANOUT];
-    float c_total = 0.0;
-    for (int c = c_first; c < c_last; ++c) {
-        cs[c - c_first] = cluster_score(ns + c, cluster_lights_count(c), A, B, C, R);
-        c_total += cs[c - c_first];
+    // 3. One of its clusters, by their scores (flat: the drawn entry is the cluster).
+    int ci = si;
+    float p_cluster = 1.0;
+    if (u_flat == 0) {
+        int c_first = si * F;
+        int c_last = min(c_first + F, u_clusters);
+        float cs[LIM_BIG_TILE_CLUSTER_FANOUT];
+        float c_total = 0.0;
+        for (int c = c_first; c < c_last; ++c) {
+            cs[c - c_first] = cluster_score(u_supers + c, cluster_lights_count(c), A, B, C, R);
+            c_total += cs[c - c_first];
+        }
+        if (!(c_total > 0.0)) {
+            imageStore(u_out, texel, uvec4(empty));
+            return;
+        }
+        float uc = rng_float(rng) * c_total;
+        ci = -1;
+        float acc = 0.0;
+        for (int c = c_first; c < c_last; ++c) {
+            if (cs[c - c_first] <= 0.0) continue;
+            ci = c;  // the last positive cluster absorbs rounding at the top
+            acc += cs[c - c_first];
+            if (uc < acc) break;
+        }
+        p_cluster = cs[ci - c_first] / c_total;
     }
-    if (!(c_total > 0.0)) {
-        imageStore(u_out, texel, uvec4(empty));
-        return;
-    }
-    float uc = rng_float(rng) * c_total;
-    int ci = -1;
-    float acc = 0.0;
-    for (int c = c_first; c < c_last; ++c) {
-        if (cs[c - c_first] <= 0.0) continue;
-        ci = c;  // the last positive cluster absorbs rounding at the top
-        acc += cs[c - c_first];
-        if (uc < acc) break;
-    }
-    float p_cluster = cs[ci - c_first] / c_total;
 
     // 4. One light of the cluster, by its own target (one-sample WRS).
     int first = ci * G;

@@ -150,6 +150,10 @@ BIG_TILE_CLUSTER_FANOUT = 8
 #: Most super-clusters (shared-memory CDF of one workgroup: 4 bytes each, 16 KiB):
 #: MAX_FOV_LIGHTS / (BIG_TILE_CLUSTER_LIGHTS x BIG_TILE_CLUSTER_FANOUT), rounded up.
 BIG_TILE_SUPERS_MAX = 4096
+#: With ``cluster_pick=flux`` a big tile scores every cluster itself (one shared CDF, no
+#: super level) while there are at most this many (n <= 4 x 2,048 lights); past it the
+#: super-clusters come first. Cost per tile n / G scores instead of n / (G F) + K F.
+BIG_TILE_CLUSTERS_FLAT_MAX = 2048
 #: ``-o bigtile=auto`` uses the clusters above this many FoV lights per slot: below it,
 #: streaming n / K lights per slot costs about as much (and is exact WRS).
 BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT = 64

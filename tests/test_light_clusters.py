@@ -89,31 +89,52 @@ def test_frame_tiling_keeps_the_big_tile_pass_bounded():
     assert StbLighting(None, reuse=False).frame_tiling(5000) == (128, True)
 
 
-@pytest.mark.parametrize("pick", ["target", "flux"])
-def test_auto_uses_clusters_above_the_threshold_and_every_slot_is_valid(gl_ctx, pick):
+@pytest.mark.parametrize(
+    "pick,flat,target",
+    [
+        ("target", 0, "segment"),
+        ("flux", 0, "segment"),
+        ("flux", 0, "uniform"),
+        ("flux", 1, "uniform"),
+    ],
+)
+def test_auto_uses_clusters_above_the_threshold_and_every_slot_is_valid(
+    gl_ctx, monkeypatch, pick, flat, target
+):
     """K = 4: above 4 x BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT lights ``auto`` draws from
     clusters; every slot then holds an in-view light with W = 1 / (K p) > 0, and the
     weights' mean over slots estimates n / K (E[W] = sum_l p_l / (K p_l) = n / K for
-    every light the target reaches -- all of them here, ranges cover the scene). With
-    ``cluster_pick=flux`` p_l is p(cluster) x flux_l / flux_cluster: a pick whose stored
-    p differs from how it was drawn moves the mean (the lights' intensities spread 10x)."""
+    every light the target reaches -- all of them here, ranges cover the scene).
+    ``cluster_pick=flux``: p_l = p(cluster) x flux_l / flux_cluster. Any pdf stored
+    normalised within a cluster keeps E[W], so the uniform-target cases (light tails)
+    also check E[W flux_l] = sum flux / K, which a stored in-cluster p other than the
+    one drawn from moves (the lights' intensities spread 10x). ``flat``: the tile's one
+    CDF over every cluster (BIG_TILE_CLUSTERS_FLAT_MAX), else super-clusters first."""
+    monkeypatch.setattr(limits, "BIG_TILE_CLUSTERS_FLAT_MAX", 1 << 20 if flat else 0)
     n = 4 * limits.BIG_TILE_CLUSTER_MIN_LIGHTS_PER_SLOT + 40
     stage = usda_stage(lights_scene(n, cube=False))
-    eng = stb_engine(stage, 128, 72, K=4, N=1, weight_cap=None, target="segment", cluster_pick=pick)
+    eng = stb_engine(stage, 128, 72, K=4, N=1, weight_cap=None, target=target, cluster_pick=pick)
     try:
-        ws = []
+        ws, fs = [], []
         for _ in range(24):
             frame = eng.render_frame()
             assert frame.stats.get("stb_light_clusters") == -(-n // limits.BIG_TILE_CLUSTER_LIGHTS)
             big = read_u32(eng.buffers.textures["stb_bigtile"])[..., 0]
             idx, w = decode_samples(big)
-            assert np.all(idx < frame.get(InViewLights).count)
+            rows = frame.get(InViewLights)
+            assert np.all(idx < rows.count)
             assert np.all(w > 0)
             ws.append(w.ravel())
+            fs.append(eng.delegate.light_table.flux[rows.rows][idx.ravel()])
+        flux_all = eng.delegate.light_table.flux[rows.rows]
         # 1 / p has mean n (an importance-sampling identity); 5 % for 24 x 4 x tiles draws
         # of a heavy-ish tail, checked on the log-encoded weights (<= 1 % rounding).
-        mean_w = float(np.mean(np.concatenate(ws)))
+        w_all = np.concatenate(ws)
+        mean_w = float(np.mean(w_all))
         assert abs(mean_w / (n / 4) - 1.0) < 0.15, mean_w
+        if target == "uniform":
+            mean_wf = float(np.mean(w_all * np.concatenate(fs)))
+            assert abs(mean_wf / (flux_all.sum() / 4) - 1.0) < 0.15, mean_wf
     finally:
         eng.release()
     eng = stb_engine(stage, 128, 72, K=64, N=1)

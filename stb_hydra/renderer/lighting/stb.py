@@ -640,6 +640,8 @@ class StbLighting(LightingMethod):
             set_uniform(cs, "u_target_mode", TARGET_MODES[o["target"]])
             set_uniform(cs, "u_clusters", cl.count)
             set_uniform(cs, "u_supers", len(cl.supers))
+            flat = flux and cl.count <= limits.BIG_TILE_CLUSTERS_FLAT_MAX
+            set_uniform(cs, "u_flat", 1 if flat else 0)
             self.bind_common(frame, cs)  # type: ignore[arg-type]  # same uniforms and buffers
             hiz.use(TEX_UNIT_HIZ)
             bufs = cast(SSBOPool, self._cluster_buffers).buffers  # built by light_clusters
