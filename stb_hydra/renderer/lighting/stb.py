@@ -495,7 +495,7 @@ class StbLighting(LightingMethod):
         g = self.grid(w, h)
         defines = self.defines(frame)
         lut_inv, lut_fwd = self._lut_textures(ctx)
-        hiz = bufs.textures[f"hiz{int(math.log2(self.big_px))}"]
+        hiz = self.big_tile_hiz(frame)
 
         # 1. big tiles
         big = bufs.texture("stb_bigtile", 1, "u4", size=g["bigtile"])
@@ -574,9 +574,9 @@ class StbLighting(LightingMethod):
             self.fullscreen_pass(frame, prog, "lighting")
         frame.stats["stb_grid"] = {k: list(v) for k, v in g.items()}
 
-    def use_clusters(self, n_lights: int) -> bool:
-        """Whether this frame's big-tile pass draws from light clusters."""
-        return self.frame_tiling(n_lights)[1]
+    def big_tile_hiz(self, frame: FrameContext) -> moderngl.Texture:
+        """The min/max depth level with one texel per big tile of this frame."""
+        return frame.buffers.textures[f"hiz{int(math.log2(self.big_px))}"]
 
     def frame_tiling(self, n_lights: int) -> tuple[int, bool]:
         """This frame's big tile (px) and whether its big-tile pass draws from light

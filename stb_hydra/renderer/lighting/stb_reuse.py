@@ -32,7 +32,6 @@ scene's light count, like STB.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING, Any
 
 import moderngl
@@ -412,8 +411,7 @@ class ReuseStage:
         method._common_uniforms(frame, prog)
         unit = method.bind_common(frame, prog)
         method._bind(frame, prog, unit, "u_bigtile", big)
-        hiz = bufs.textures[f"hiz{int(math.log2(method.big_px))}"]
-        method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", hiz)
+        method._bind(frame, prog, TEX_UNIT_HIZ, "u_hiz", method.big_tile_hiz(frame))
         method._pass(frame, prog, names, big.size)
         return texs
 
